@@ -1,0 +1,86 @@
+"""Small rigid-geometry helpers shared by the stages.
+
+In: 4x4 homogeneous transforms and 3-vectors as numpy float64 arrays (metres, radians).
+Out: the same. Cameras inside volec are OpenCV-style (x right, y down, z forward);
+``T_a_from_b`` maps points in frame b to frame a.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+# Flips camera y and z: OpenGL/Blender camera axes (y up, z back) <-> OpenCV (y down, z forward).
+GL_FROM_CV = np.diag([1.0, -1.0, -1.0, 1.0])
+
+
+def opengl_c2w_to_opencv(T_world_from_cam_gl: np.ndarray) -> np.ndarray:
+    """Camera-to-world with OpenGL camera axes -> camera-to-world with OpenCV camera axes."""
+    return np.asarray(T_world_from_cam_gl, dtype=float) @ GL_FROM_CV
+
+
+def opencv_c2w_to_opengl(T_world_from_cam: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`opengl_c2w_to_opencv` (the flip is its own inverse)."""
+    return np.asarray(T_world_from_cam, dtype=float) @ GL_FROM_CV
+
+
+def make_transform(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
+    """4x4 transform from a 3x3 rotation and a 3-vector translation."""
+    T = np.eye(4)
+    T[:3, :3] = rotation
+    T[:3, 3] = translation
+    return T
+
+
+def invert_rigid(T: np.ndarray) -> np.ndarray:
+    """Inverse of a rigid 4x4 transform, using R^T rather than a general inverse."""
+    R = T[:3, :3]
+    t = T[:3, 3]
+    return make_transform(R.T, -R.T @ t)
+
+
+def transform_points(T: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Apply a 4x4 transform to an (N, 3) array of points."""
+    return points @ T[:3, :3].T + T[:3, 3]
+
+
+def rigid_problem(T: np.ndarray, tol: float = 1e-4) -> str | None:
+    """Why ``T`` is not a finite proper rigid 4x4 transform, or None if it is one."""
+    T = np.asarray(T, dtype=float)
+    if T.shape != (4, 4):
+        return f"shape is {T.shape}, expected (4, 4)"
+    if not np.all(np.isfinite(T)):
+        return "contains NaN or infinite values"
+    if not np.allclose(T[3], [0, 0, 0, 1], atol=tol):
+        return f"last row is {T[3].tolist()}, expected [0, 0, 0, 1]"
+    R = T[:3, :3]
+    det = np.linalg.det(R)
+    if abs(det) < 1e-9:
+        return "rotation block is singular (not invertible)"
+    if not np.allclose(R.T @ R, np.eye(3), atol=tol) or det < 0:
+        return f"rotation block is not a proper rotation (det {det:.6g}, or not orthonormal)"
+    return None
+
+
+def look_at_opencv(eye: np.ndarray, target: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """T_world_from_cam for an OpenCV camera at ``eye`` looking at ``target``.
+
+    The image's y axis (down) points as close as possible to ``-up``.
+    """
+    z = np.asarray(target, float) - np.asarray(eye, float)
+    z /= np.linalg.norm(z)
+    x = np.cross(-np.asarray(up, float), z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return make_transform(np.stack([x, y, z], axis=1), eye)
+
+
+def rotation_angle_deg(R_a: np.ndarray, R_b: np.ndarray) -> float:
+    """Angle in degrees of the relative rotation R_a^T R_b."""
+    cos = (np.trace(R_a.T @ R_b) - 1.0) / 2.0
+    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+
+
+def rotvec_to_matrix(rotvec: np.ndarray) -> np.ndarray:
+    """Axis-angle vector (radians) -> 3x3 rotation matrix."""
+    return Rotation.from_rotvec(rotvec).as_matrix()

@@ -1,0 +1,376 @@
+"""Synthetic FoodKit captures: what a phone would record of a food item, and the truth.
+
+In: an item name, a :class:`SynthConfig` (or a named preset) and an output folder.
+Out, written atomically (a folder appears complete or not at all)::
+
+    OUT/capture/          what the pipeline reads
+        images/frame_00000.jpg ...   portrait JPEGs
+        masks/frame_00000.png ...    food masks (when ``masks_in_capture``; a perfect segmenter)
+        transforms.json              nerfstudio layout, AR-reported (drifting) metric poses
+    OUT/ground_truth/     what only evaluation reads
+        food_mesh.ply                the exact watertight food mesh, world frame, metres
+        transforms_exact.json        the exact poses (same layout)
+        masks/frame_00000.png ...    exact food masks
+        truth.json                   volume, seed, config, world-from-scene transform, AR errors
+
+The capture's world frame is the AR session's: gravity-aligned with +y up (as ARKit), its
+origin and heading unrelated to the plate, so nothing downstream may assume the object sits
+at the origin or that z is up.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import logging
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import trimesh
+from PIL import Image
+from tqdm.auto import tqdm
+
+from volec.capture import Capture, Frame, Intrinsics, write_transforms_json
+from volec.errors import OutputExistsError
+from volec.geometry import look_at_opencv, make_transform, rotation_angle_deg, rotvec_to_matrix
+from volec.io import (
+    ensure_writable_output,
+    fill_folder_atomic,
+    write_bytes_atomic,
+    write_json_atomic,
+)
+from volec.synth.render import Renderer, to_srgb8
+from volec.synth.scene import Scene, build_scene
+from volec.synth.shapes import ITEMS, item_mesh, stable_seed
+from volec.synth.trajectory import (
+    DriftConfig,
+    TrajectoryConfig,
+    ar_reported_poses,
+    handheld_orbit,
+)
+
+log = logging.getLogger(__name__)
+
+#: Maps the scene frame (z up) to an ARKit-like world frame (y up).
+WORLD_FROM_SCENE_AXES = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class SynthConfig:
+    """Everything that decides a synthetic capture; the same config and seed give the same bytes."""
+
+    trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
+    """The handheld orbit."""
+    drift: DriftConfig = field(default_factory=DriftConfig)
+    """How the AR poses written to the capture err."""
+    width: int = 480
+    """Image width, pixels (portrait)."""
+    height: int = 640
+    """Image height, pixels."""
+    focal_px: float = 520.0
+    """Focal length, pixels (about 63 degrees across the long side, like a phone)."""
+    principal_offset_px: tuple[float, float] = (1.3, -0.9)
+    """Principal point offset from the image centre, pixels."""
+    image_noise_std: float = 1.5
+    """Sensor noise standard deviation, in 8-bit levels."""
+    exposure_variation: float = 0.03
+    """Relative frame-to-frame auto-exposure change."""
+    jpeg_quality: int = 92
+    """JPEG quality of the frames."""
+    masks_in_capture: bool = True
+    """Also give the capture the exact food masks (as a perfect segmentation model would)."""
+    mesh_resolution: int = 112
+    """Marching-cubes cells along the food's longest side."""
+    seed: int = 0
+    """Seed for the trajectory, drift, placement, textures and noise."""
+    workers: int = 2
+    """Processes rendering frames in parallel (1 renders in this process)."""
+
+    def __post_init__(self) -> None:
+        if self.width < 16 or self.height < 16:
+            raise ValueError(f"image size {self.width}x{self.height} is too small")
+        if not 1 <= self.jpeg_quality <= 100:
+            raise ValueError(f"jpeg_quality must be in 1..100, got {self.jpeg_quality}")
+        if self.workers < 1:
+            raise ValueError(f"workers must be at least 1, got {self.workers}")
+
+    @property
+    def intrinsics(self) -> Intrinsics:
+        """The phone camera's intrinsics (pinhole, no distortion)."""
+        return Intrinsics(
+            width=self.width,
+            height=self.height,
+            fx=self.focal_px,
+            fy=self.focal_px,
+            cx=(self.width - 1) / 2 + self.principal_offset_px[0],
+            cy=(self.height - 1) / 2 + self.principal_offset_px[1],
+        )
+
+    def with_(self, **changes: Any) -> SynthConfig:
+        """A copy with top-level fields, or ``n_frames``, ``arc_deg``, ``drift_m`` changed."""
+        traj = {k: changes.pop(k) for k in ("n_frames", "arc_deg") if k in changes}
+        drift_m = changes.pop("drift_m", None)
+        cfg = replace(self, **changes)
+        if traj:
+            cfg = replace(cfg, trajectory=replace(cfg.trajectory, **traj))
+        if drift_m is not None:
+            cfg = replace(cfg, drift=replace(cfg.drift, position_m=drift_m))
+        return cfg
+
+
+PRESETS: dict[str, SynthConfig] = {
+    "default": SynthConfig(),
+    "half_orbit": SynthConfig(trajectory=TrajectoryConfig(arc_deg=180.0)),
+    "drift_1cm": SynthConfig(drift=DriftConfig(position_m=0.01, rotation_deg=0.6)),
+    "quick": SynthConfig(
+        trajectory=TrajectoryConfig(n_frames=12), width=240, height=320, focal_px=260.0,
+        mesh_resolution=64,
+    ),
+}
+"""Named configs: ``default`` (100 frames, full orbit), ``half_orbit``, ``drift_1cm``, ``quick``."""
+
+
+# ----------------------------------------------------------------------------- rendering
+
+_WORKER: dict[str, Any] = {}
+
+
+def _init_worker(scene: Scene) -> None:
+    _WORKER["renderer"] = Renderer(scene)
+
+
+def _render_frame(args: tuple[int, np.ndarray, SynthConfig]) -> tuple[bytes, bytes]:
+    """Render one frame; returns (JPEG bytes, mask PNG bytes). Seeded by frame index."""
+    index, T_scene_from_cam, cfg = args
+    renderer: Renderer = _WORKER["renderer"]
+    K = cfg.intrinsics.K
+    view = renderer.render(K, cfg.width, cfg.height, T_scene_from_cam)
+    rng = np.random.default_rng([cfg.seed, index, 7])
+    gain = 1.0 + cfg.exposure_variation * np.sin(0.15 * index + cfg.seed)
+    img = to_srgb8(view.rgb * gain).astype(float)
+    img += rng.normal(scale=cfg.image_noise_std, size=img.shape)
+    img8 = np.clip(np.round(img), 0, 255).astype(np.uint8)
+    jpg, png = io.BytesIO(), io.BytesIO()
+    Image.fromarray(img8).save(jpg, format="JPEG", quality=cfg.jpeg_quality)
+    Image.fromarray((view.food_mask * 255).astype(np.uint8)).save(png, format="PNG")
+    return jpg.getvalue(), png.getvalue()
+
+
+def render_frames(
+    scene: Scene, poses: np.ndarray, cfg: SynthConfig, progress: bool = True
+) -> list[tuple[bytes, bytes]]:
+    """Render every pose of ``poses`` (scene frame) to (JPEG, mask PNG) bytes, in order."""
+    jobs = [(i, poses[i], cfg) for i in range(len(poses))]
+    bar = tqdm(total=len(jobs), desc="render", unit="frame", disable=not progress)
+    results: list[tuple[bytes, bytes]] = []
+    if cfg.workers == 1 or len(jobs) < 4:
+        _init_worker(scene)
+        for job in jobs:
+            results.append(_render_frame(job))
+            bar.update()
+    else:
+        with ProcessPoolExecutor(cfg.workers, initializer=_init_worker, initargs=(scene,)) as ex:
+            for r in ex.map(_render_frame, jobs, chunksize=2):
+                results.append(r)
+                bar.update()
+    bar.close()
+    return results
+
+
+# ----------------------------------------------------------------------------- the capture
+
+
+@dataclass
+class SynthScene:
+    """The deterministic part of a synthetic capture, before rendering."""
+
+    item: str
+    scene: Scene
+    T_world_from_scene: np.ndarray
+    exact_scene_poses: np.ndarray
+    reported_scene_poses: np.ndarray
+
+
+def plan_capture(item: str, cfg: SynthConfig) -> SynthScene:
+    """Build the scene, the exact trajectory and the AR-reported poses for ``item``."""
+    if item not in ITEMS:
+        raise KeyError(f"unknown food item '{item}'; `volec synth --list` shows the items")
+    rng = np.random.default_rng([cfg.seed, stable_seed(item)])
+    food = item_mesh(item, cfg.mesh_resolution)
+    texture_seed = int(rng.integers(2**31))
+    scene = build_scene(food, item, seed=texture_seed, yaw_rad=rng.uniform(0, 2 * np.pi))
+    lo, hi = scene.food.bounds
+    centre = (lo + hi) / 2
+    radius = float(np.linalg.norm(hi - lo) / 2)
+    exact = handheld_orbit(cfg.trajectory, centre, radius, rng)
+    reported = ar_reported_poses(exact, cfg.drift, rng)
+    yaw = rotvec_to_matrix(np.array([0.0, rng.uniform(0, 2 * np.pi), 0.0]))
+    offset = np.array([rng.uniform(-0.5, 0.5), rng.uniform(-0.4, -0.1), rng.uniform(-0.8, -0.2)])
+    T_world_from_scene = make_transform(yaw @ WORLD_FROM_SCENE_AXES, offset)
+    return SynthScene(item, scene, T_world_from_scene, exact, reported)
+
+
+def _pose_errors(reported: np.ndarray, exact: np.ndarray) -> dict[str, float]:
+    pos = np.linalg.norm(reported[:, :3, 3] - exact[:, :3, 3], axis=1)
+    rot = np.array(
+        [rotation_angle_deg(a[:3, :3], b[:3, :3]) for a, b in zip(reported, exact, strict=True)]
+    )
+    return {
+        "position_error_median_m": float(np.median(pos)),
+        "position_error_max_m": float(pos.max()),
+        "rotation_error_median_deg": float(np.median(rot)),
+        "rotation_error_max_deg": float(rot.max()),
+    }
+
+
+def _capture_of(root: Path, names: list[str], poses: np.ndarray, intr: Intrinsics,
+                masks: bool, image_root: Path, metadata: dict[str, Any]) -> Capture:
+    frames = tuple(
+        Frame(
+            name=f"images/{n}.jpg",
+            image_path=image_root / "images" / f"{n}.jpg",
+            intrinsics=intr,
+            T_world_from_cam=poses[i],
+            mask_path=(root / "masks" / f"{n}.png") if masks else None,
+        )
+        for i, n in enumerate(names)
+    )
+    return Capture(root=root, frames=frames, metadata=metadata)
+
+
+def write_synthetic_capture(
+    item: str, out: Path, cfg: SynthConfig | None = None, overwrite: bool = False,
+    progress: bool = True,
+) -> Path:
+    """Render ``item`` with ``cfg`` and write ``out/capture`` and ``out/ground_truth``.
+
+    Refuses to replace an existing non-empty ``out`` unless ``overwrite``. Returns ``out``.
+    """
+    cfg = cfg or PRESETS["default"]
+    out = Path(out)
+    ensure_writable_output(out, overwrite)  # fail before minutes of rendering, not after
+    plan = plan_capture(item, cfg)
+    Tws = plan.T_world_from_scene
+    exact_world = np.einsum("ij,njk->nik", Tws, plan.exact_scene_poses)
+    reported_world = np.einsum("ij,njk->nik", Tws, plan.reported_scene_poses)
+    rendered = render_frames(plan.scene, plan.exact_scene_poses, cfg, progress=progress)
+    names = [f"frame_{i:05d}" for i in range(len(rendered))]
+
+    def fill(tmp: Path) -> None:
+        cap_dir, gt_dir = tmp / "capture", tmp / "ground_truth"
+        for d in (cap_dir / "images", gt_dir / "masks") + ((cap_dir / "masks",) if
+                                                          cfg.masks_in_capture else ()):
+            d.mkdir(parents=True)
+        for n, (jpg, png) in zip(names, rendered, strict=True):
+            (cap_dir / "images" / f"{n}.jpg").write_bytes(jpg)
+            (gt_dir / "masks" / f"{n}.png").write_bytes(png)
+            if cfg.masks_in_capture:
+                (cap_dir / "masks" / f"{n}.png").write_bytes(png)
+        meta = {"source": "volec synth", "world_up": [0.0, 1.0, 0.0]}
+        intr = cfg.intrinsics
+        write_transforms_json(
+            _capture_of(cap_dir, names, reported_world, intr, cfg.masks_in_capture, cap_dir, meta),
+            cap_dir / "transforms.json",
+        )
+        write_transforms_json(
+            _capture_of(gt_dir, names, exact_world, intr, True, cap_dir, {"source": "exact"}),
+            gt_dir / "transforms_exact.json",
+        )
+        food_world = plan.scene.food.copy()
+        food_world.apply_transform(Tws)
+        write_bytes_atomic(gt_dir / "food_mesh.ply", food_world.export(file_type="ply"))
+        truth = {
+            "item": item,
+            "label": ITEMS[item].label,
+            "volume_ml": float(food_world.volume * 1e6),
+            "table_volume_ml": float(ITEMS[item].volume_ml),
+            "n_frames": len(names),
+            "world_up": [0.0, 1.0, 0.0],
+            "T_world_from_scene": Tws.tolist(),
+            "plate_radius_m": plan.scene.plate_radius_m,
+            "ar_pose_error": _pose_errors(reported_world, exact_world),
+            "config": asdict(cfg),
+        }
+        write_json_atomic(gt_dir / "truth.json", truth)
+
+    return fill_folder_atomic(out, fill, overwrite=overwrite)
+
+
+def write_benchmark(
+    root: Path, items: list[str] | None = None, cfg: SynthConfig | None = None,
+    overwrite: bool = False, progress: bool = True,
+) -> list[Path]:
+    """Write one capture per item under ``root/ITEM``; finished items with the same config are
+    kept (a re-run only does what is missing). A finished item with another config is an error
+    unless ``overwrite``."""
+    cfg = cfg or PRESETS["default"]
+    items = items or list(ITEMS)
+    wanted = json.loads(json.dumps(asdict(cfg)))
+    done: list[Path] = []
+    for item in tqdm(items, desc="benchmark", unit="item", disable=not progress):
+        out = Path(root) / item
+        truth = out / "ground_truth" / "truth.json"
+        if truth.exists() and not overwrite:
+            if json.loads(truth.read_text()).get("config") != wanted:
+                raise OutputExistsError(
+                    f"{out} was generated with another config; pass overwrite=True "
+                    "(--overwrite) to regenerate it, or choose another folder"
+                )
+            log.info("%s: already generated, kept", out)
+            done.append(out)
+            continue
+        done.append(write_synthetic_capture(item, out, cfg, overwrite=overwrite,
+                                            progress=progress))
+    return done
+
+
+def render_preview(item: str, size_px: int = 320, seed: int = 0,
+                   elevation_deg: float = 35.0) -> np.ndarray:
+    """A square 8-bit RGB picture of ``item`` on its plate, for galleries."""
+    food = item_mesh(item)
+    scene = build_scene(food, item, seed=seed, yaw_rad=0.6)
+    lo, hi = scene.food.bounds
+    centre = (lo + hi) / 2
+    radius = float(np.linalg.norm(hi - lo) / 2)
+    distance = max(radius / np.tan(np.radians(17)), 0.12)
+    e = np.radians(elevation_deg)
+    eye = centre + distance * np.array([np.cos(e) * np.cos(-0.9), np.cos(e) * np.sin(-0.9),
+                                        np.sin(e)])
+    T = look_at_opencv(eye, centre, np.array([0.0, 0.0, 1.0]))
+    f = size_px / 2 / np.tan(np.radians(20))
+    K = np.array([[f, 0, (size_px - 1) / 2], [0, f, (size_px - 1) / 2], [0, 0, 1.0]])
+    return to_srgb8(Renderer(scene).render(K, size_px, size_px, T).rgb)
+
+
+def capture_paths(out: Path) -> tuple[Path, Path]:
+    """(capture folder, ground-truth folder) of a synthetic capture written to ``out``."""
+    return Path(out) / "capture", Path(out) / "ground_truth"
+
+
+def load_truth(out: Path) -> dict[str, Any]:
+    """The ``truth.json`` of a synthetic capture written to ``out``."""
+    return json.loads((Path(out) / "ground_truth" / "truth.json").read_text())
+
+
+def load_ground_truth_mesh(out: Path) -> trimesh.Trimesh:
+    """The exact food mesh (world frame, metres) of a synthetic capture written to ``out``."""
+    mesh = trimesh.load(Path(out) / "ground_truth" / "food_mesh.ply", process=False)
+    if not isinstance(mesh, trimesh.Trimesh):
+        raise ValueError(f"{out}: food_mesh.ply is not a single mesh")
+    return mesh
+
+
+__all__ = [
+    "PRESETS",
+    "SynthConfig",
+    "capture_paths",
+    "load_ground_truth_mesh",
+    "load_truth",
+    "plan_capture",
+    "render_preview",
+    "write_benchmark",
+    "write_synthetic_capture",
+]

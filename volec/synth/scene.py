@@ -1,0 +1,167 @@
+"""A food item on a plate on a table, with solid textures, for rendering.
+
+In: a food mesh in metres resting on z = 0 (from :mod:`volec.synth.shapes`), an item name for
+its colours, and a seed. Out: a :class:`Scene` (scene frame: z up, plate top at z = 0) holding
+one combined mesh with a per-face object label, and the colour function of each object.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import trimesh
+
+from volec.synth.noise import SolidNoise, smoothstep
+
+TABLE, PLATE, FOOD = 0, 1, 2
+"""Object labels stored per face of :attr:`Scene.mesh`."""
+
+PLATE_THICKNESS_M = 0.012
+
+
+@dataclass(frozen=True)
+class Palette:
+    """Colours (linear RGB in [0, 1]) and texture scales of one surface."""
+
+    base: tuple[float, float, float]
+    """Main colour."""
+    second: tuple[float, float, float]
+    """Colour mixed in by low-frequency noise (blotches, ripeness)."""
+    speckle: tuple[float, float, float]
+    """Colour of small spots (seeds, pores, crumbs)."""
+    blotch_size_m: float = 0.015
+    """Typical size of the blotches, metres."""
+    detail_size_m: float = 0.0025
+    """Typical size of the fine grain that feature detectors lock on to, metres."""
+    speckle_density: float = 0.12
+    """Fraction of the surface covered by speckles."""
+    top: tuple[float, float, float] | None = None
+    """Colour of upward-facing surface (icing, crust, chocolate), or None."""
+
+
+FOOD_PALETTES: dict[str, Palette] = {
+    "apple": Palette((0.55, 0.05, 0.04), (0.75, 0.55, 0.1), (0.9, 0.8, 0.45), 0.02),
+    "orange": Palette((0.9, 0.42, 0.04), (0.95, 0.55, 0.1), (0.7, 0.3, 0.02), 0.02),
+    "avocado": Palette((0.08, 0.14, 0.04), (0.18, 0.22, 0.06), (0.35, 0.38, 0.15), 0.01),
+    "lemon": Palette((0.9, 0.8, 0.12), (0.8, 0.75, 0.2), (0.6, 0.55, 0.05), 0.02),
+    "donut": Palette((0.7, 0.42, 0.18), (0.55, 0.3, 0.12), (0.95, 0.9, 0.8), 0.015,
+                     top=(0.28, 0.14, 0.07)),
+    "durum": Palette((0.85, 0.72, 0.5), (0.65, 0.45, 0.25), (0.45, 0.3, 0.15), 0.012),
+    "pear": Palette((0.55, 0.6, 0.12), (0.7, 0.55, 0.15), (0.35, 0.3, 0.1), 0.02),
+    "chocolate_cake": Palette((0.2, 0.1, 0.05), (0.3, 0.16, 0.08), (0.55, 0.4, 0.3), 0.01,
+                              top=(0.12, 0.06, 0.03)),
+    "chocolate_croissant": Palette((0.72, 0.42, 0.14), (0.5, 0.26, 0.08), (0.9, 0.75, 0.5),
+                                   0.012),
+    "samosa": Palette((0.78, 0.55, 0.22), (0.6, 0.38, 0.12), (0.35, 0.2, 0.08), 0.012),
+    "apple_pie": Palette((0.8, 0.58, 0.3), (0.6, 0.38, 0.15), (0.95, 0.85, 0.6), 0.012,
+                         top=(0.68, 0.42, 0.16)),
+    "chocolate_bomb": Palette((0.18, 0.09, 0.05), (0.3, 0.18, 0.1), (0.75, 0.65, 0.5), 0.015),
+    "empanadilla": Palette((0.82, 0.6, 0.28), (0.65, 0.42, 0.16), (0.4, 0.25, 0.1), 0.012),
+    "falafel": Palette((0.45, 0.3, 0.12), (0.3, 0.2, 0.08), (0.25, 0.35, 0.1), 0.006),
+    "french_bread": Palette((0.82, 0.6, 0.3), (0.6, 0.38, 0.14), (0.95, 0.9, 0.75), 0.015),
+    "paxoco_mini": Palette((0.75, 0.5, 0.22), (0.55, 0.32, 0.12), (0.95, 0.9, 0.8), 0.012),
+    "napolitana": Palette((0.8, 0.55, 0.22), (0.55, 0.32, 0.1), (0.25, 0.12, 0.06), 0.012),
+    "capsicum": Palette((0.7, 0.04, 0.03), (0.5, 0.05, 0.02), (0.9, 0.5, 0.4), 0.025),
+    "chocolate_panettone": Palette((0.62, 0.38, 0.15), (0.4, 0.22, 0.08), (0.15, 0.07, 0.04),
+                                   0.015, top=(0.45, 0.25, 0.1)),
+    "banana": Palette((0.88, 0.75, 0.12), (0.7, 0.62, 0.1), (0.3, 0.2, 0.05), 0.02,
+                      speckle_density=0.08),
+    "yellow_cane": Palette((0.9, 0.72, 0.3), (0.7, 0.5, 0.2), (0.98, 0.95, 0.85), 0.015),
+}
+
+DEFAULT_FOOD_PALETTE = Palette((0.7, 0.5, 0.25), (0.5, 0.32, 0.12), (0.9, 0.8, 0.6), 0.015)
+
+
+@dataclass
+class Scene:
+    """Everything the renderer needs; built by :func:`build_scene`."""
+
+    mesh: trimesh.Trimesh
+    """Table, plate and food in one mesh (scene frame, metres, z up)."""
+    face_label: np.ndarray
+    """(F,) object label of each face: TABLE, PLATE or FOOD."""
+    food_palette: Palette
+    """Appearance of the food."""
+    plate_radius_m: float
+    """Radius of the plate, metres."""
+    food: trimesh.Trimesh
+    """The food alone, as placed in the scene (the ground-truth mesh)."""
+    noise: SolidNoise = field(repr=False, default_factory=lambda: SolidNoise(0))
+    """Texture noise (seeded)."""
+
+    def colour(self, label: int, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        """Albedo (N, 3) of object ``label`` at world ``points`` with unit ``normals``."""
+        if label == FOOD:
+            return _palette_colour(self.food_palette, self.noise, points, normals)
+        if label == PLATE:
+            return _plate_colour(self.noise, points, self.plate_radius_m)
+        return _table_colour(self.noise, points)
+
+
+def _palette_colour(
+    pal: Palette, noise: SolidNoise, p: np.ndarray, normals: np.ndarray
+) -> np.ndarray:
+    blotch = smoothstep(0.35, 0.65, noise.fractal(p, 1.0 / pal.blotch_size_m, octaves=2))
+    c = np.asarray(pal.base) * (1 - blotch[:, None]) + np.asarray(pal.second) * blotch[:, None]
+    if pal.top is not None:
+        upward = smoothstep(0.25, 0.5, normals[:, 2])[:, None]
+        top = np.asarray(pal.top) * (0.85 + 0.3 * blotch[:, None])
+        c = c * (1 - upward) + top * upward
+    grain = noise.fractal(p, 1.0 / pal.detail_size_m, octaves=2)
+    c = c * (0.7 + 0.6 * grain)[:, None]
+    spots = noise.value(p, 0.5 / pal.detail_size_m, octave=6)
+    speck = smoothstep(1.0 - pal.speckle_density, 1.0 - pal.speckle_density + 0.05, spots)
+    c = c * (1 - 0.85 * speck[:, None]) + np.asarray(pal.speckle) * 0.85 * speck[:, None]
+    return np.clip(c, 0.0, 1.0)
+
+
+def _plate_colour(noise: SolidNoise, p: np.ndarray, radius: float) -> np.ndarray:
+    rho = np.hypot(p[:, 0], p[:, 1])
+    theta = np.arctan2(p[:, 1], p[:, 0])
+    c = np.tile(np.array([0.86, 0.85, 0.8]), (len(p), 1))
+    c *= (0.93 + 0.07 * noise.value(p, 400.0, octave=3))[:, None]
+    # A printed rim: a blue band with a ring of flowers that give the matcher something.
+    band = (rho > 0.78 * radius) & (rho < 0.95 * radius)
+    flowers = np.cos(24 * theta) * np.cos(2 * np.pi * (rho / radius - 0.865) / 0.17) > 0.55
+    c[band] = [0.2, 0.3, 0.6]
+    c[band & flowers] = [0.85, 0.75, 0.2]
+    speck = noise.value(p, 350.0, octave=4) > 0.8
+    c[band & speck] *= 0.5
+    return c
+
+
+def _table_colour(noise: SolidNoise, p: np.ndarray) -> np.ndarray:
+    # Wood: grain stretched along x, growth rings, dark knots.
+    q = p * np.array([0.15, 1.0, 1.0])
+    rings = np.sin(2 * np.pi * (p[:, 1] * 90 + 3.0 * noise.fractal(q, 20.0, octaves=2)))
+    fine = noise.value(q, 600.0, octave=2)
+    c = np.array([0.45, 0.27, 0.13]) * (0.8 + 0.15 * rings + 0.35 * (fine - 0.5))[:, None]
+    knots = noise.value(p, 12.0, octave=7) > 0.9
+    c[knots] *= 0.55
+    return np.clip(c, 0.0, 1.0)
+
+
+def build_scene(food: trimesh.Trimesh, item: str, seed: int, yaw_rad: float = 0.0) -> Scene:
+    """Put ``food`` (resting on z = 0) on a plate on a table, turned by ``yaw_rad``."""
+    food = food.copy()
+    food.apply_transform(trimesh.transformations.rotation_matrix(yaw_rad, [0, 0, 1]))
+    lo, hi = food.bounds
+    food.apply_translation([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, 0.0])
+    footprint = float(np.hypot(*(food.bounds[1, :2] - food.bounds[0, :2])) / 2)
+    plate_radius = float(np.clip(1.35 * footprint, 0.09, 0.16))
+    plate = trimesh.creation.cylinder(radius=plate_radius, height=PLATE_THICKNESS_M, sections=160)
+    plate.apply_translation([0, 0, -PLATE_THICKNESS_M / 2])
+    table = trimesh.creation.box(extents=[1.6, 1.6, 0.03])
+    table.apply_translation([0.05, -0.1, -PLATE_THICKNESS_M - 0.015])
+    parts = [table, plate, food]
+    labels = np.concatenate([np.full(len(m.faces), lab) for lab, m in enumerate(parts)])
+    mesh = trimesh.util.concatenate(parts)
+    return Scene(
+        mesh=mesh,
+        face_label=labels.astype(np.int8),
+        food_palette=FOOD_PALETTES.get(item, DEFAULT_FOOD_PALETTE),
+        plate_radius_m=plate_radius,
+        food=food,
+        noise=SolidNoise(seed),
+    )
