@@ -109,6 +109,12 @@ class SynthConfig:
             cy=(self.height - 1) / 2 + self.principal_offset_px[1],
         )
 
+    def recorded(self) -> dict[str, Any]:
+        """The fields that decide the output (``workers`` does not), as plain JSON data."""
+        data = json.loads(json.dumps(asdict(self)))
+        data.pop("workers")
+        return data
+
     def with_(self, **changes: Any) -> SynthConfig:
         """A copy with top-level fields, or ``n_frames``, ``arc_deg``, ``drift_m`` changed."""
         traj = {k: changes.pop(k) for k in ("n_frames", "arc_deg") if k in changes}
@@ -292,7 +298,7 @@ def write_synthetic_capture(
             "T_world_from_scene": Tws.tolist(),
             "plate_radius_m": plan.scene.plate_radius_m,
             "ar_pose_error": _pose_errors(reported_world, exact_world),
-            "config": asdict(cfg),
+            "config": cfg.recorded(),
         }
         write_json_atomic(gt_dir / "truth.json", truth)
 
@@ -308,7 +314,7 @@ def write_benchmark(
     unless ``overwrite``."""
     cfg = cfg or PRESETS["default"]
     items = items or list(ITEMS)
-    wanted = json.loads(json.dumps(asdict(cfg)))
+    wanted = cfg.recorded()
     done: list[Path] = []
     for item in tqdm(items, desc="benchmark", unit="item", disable=not progress):
         out = Path(root) / item

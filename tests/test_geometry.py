@@ -1,0 +1,67 @@
+import numpy as np
+import pytest
+
+from volec.geometry import (
+    invert_rigid,
+    look_at_opencv,
+    opencv_c2w_to_opengl,
+    opengl_c2w_to_opencv,
+    rigid_problem,
+    rotation_angle_deg,
+    rotvec_to_matrix,
+    transform_points,
+)
+
+
+def random_pose(rng: np.random.Generator) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = rotvec_to_matrix(rng.normal(size=3))
+    T[:3, 3] = rng.normal(size=3)
+    return T
+
+
+def test_gl_cv_conversion_is_an_involution():
+    T = random_pose(np.random.default_rng(0))
+    np.testing.assert_allclose(opencv_c2w_to_opengl(opengl_c2w_to_opencv(T)), T, atol=1e-15)
+
+
+def test_gl_to_cv_flips_the_camera_y_and_z_axes():
+    # An OpenGL camera with identity rotation looks along -z (world) with +y up.
+    T_cv = opengl_c2w_to_opencv(np.eye(4))
+    np.testing.assert_allclose(T_cv[:3, 2], [0, 0, -1])  # OpenCV forward = world -z
+    np.testing.assert_allclose(T_cv[:3, 1], [0, -1, 0])  # OpenCV down = world -y
+    np.testing.assert_allclose(T_cv[:3, 0], [1, 0, 0])
+
+
+def test_invert_rigid_matches_the_general_inverse():
+    T = random_pose(np.random.default_rng(1))
+    np.testing.assert_allclose(invert_rigid(T), np.linalg.inv(T), atol=1e-12)
+
+
+def test_look_at_points_the_optical_axis_at_the_target_with_image_down_along_gravity():
+    eye, target = np.array([0.3, -0.2, 0.25]), np.array([0.0, 0.0, 0.03])
+    T = look_at_opencv(eye, target, np.array([0.0, 0.0, 1.0]))
+    assert rigid_problem(T) is None
+    p_cam = transform_points(invert_rigid(T), target[None])[0]
+    np.testing.assert_allclose(p_cam[:2], 0, atol=1e-12)
+    assert p_cam[2] == pytest.approx(np.linalg.norm(target - eye))
+    assert T[2, 1] < 0  # camera y (image down) has a negative world-z component
+
+
+@pytest.mark.parametrize(
+    "matrix, words",
+    [
+        (np.full((4, 4), np.nan), "NaN"),
+        (np.zeros((4, 4)) + np.diag([0, 0, 0, 1.0]), "singular"),
+        (np.diag([2.0, 2, 2, 1]), "not a proper rotation"),
+        (np.diag([1.0, 1, -1, 1]), "not a proper rotation"),
+        (np.eye(3), "shape"),
+    ],
+)
+def test_rigid_problem_names_the_defect(matrix, words):
+    assert words in rigid_problem(matrix)
+
+
+def test_rotation_angle():
+    R = rotvec_to_matrix(np.array([0.0, 0.0, np.radians(30)]))
+    assert rotation_angle_deg(np.eye(3), R) == pytest.approx(30.0)
