@@ -1,0 +1,46 @@
+"""Every notebook runs headless in its quick mode and stays thin."""
+
+import ast
+import json
+from pathlib import Path
+
+import pytest
+
+NOTEBOOKS = sorted((Path(__file__).parents[1] / "notebooks").glob("[0-9][0-9]_*.ipynb"))
+
+
+def test_there_are_notebooks():
+    assert NOTEBOOKS
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+def test_notebook_is_thin_and_committed_without_outputs(path):
+    nb = json.loads(path.read_text())
+    code = [c for c in nb["cells"] if c["cell_type"] == "code"]
+    assert all(not c.get("outputs") and c.get("execution_count") is None for c in code)
+    first = code[0]
+    assert "parameters" in first["metadata"].get("tags", [])
+    for node in ast.parse("".join(first["source"])).body:
+        assert isinstance(node, ast.Assign) and isinstance(node.value, ast.Constant)
+    assert "quick" in "".join(first["source"])
+    for cell in code:
+        tree = ast.parse("".join(cell["source"]))
+        defs = [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef | ast.ClassDef)]
+        assert not defs, f"{path.name}: move definitions into volec"
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+def test_notebook_runs_in_quick_mode(path, tmp_path, monkeypatch):
+    papermill = pytest.importorskip("papermill")
+    from jupyter_client.kernelspec import KernelSpecManager
+
+    monkeypatch.setenv("VOLEC_FIGURES_DIR", str(tmp_path / "figures"))
+    monkeypatch.setenv("VOLEC_DATA_DIR", str(tmp_path / "data"))
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    kernel = "volec" if "volec" in KernelSpecManager().find_kernel_specs() else "python3"
+    papermill.execute_notebook(
+        str(path), str(tmp_path / path.name), parameters={"quick": True},
+        kernel_name=kernel, cwd=str(path.parent), progress_bar=False,
+    )
+    written = list((tmp_path / "figures").iterdir())
+    assert written, "the notebook wrote no figure or table"

@@ -1,0 +1,74 @@
+"""Figures: matplotlib pictures of captures, clouds and meshes for notebooks and reports.
+
+In: images, poses and tables as numpy arrays. Out: ``matplotlib.figure.Figure`` objects;
+:func:`save_figure` writes one to PNG atomically. Nothing here touches volec's data files.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.figure import Figure
+
+from volec.io import write_bytes_atomic
+
+
+def image_grid(
+    images: Sequence[np.ndarray], titles: Sequence[str], ncols: int = 7, size_in: float = 2.2
+) -> Figure:
+    """A grid of images with a title under each."""
+    n = len(images)
+    nrows = int(np.ceil(n / ncols))
+    fig, axes = plt.subplots(nrows, ncols, figsize=(ncols * size_in, nrows * (size_in + 0.3)))
+    for ax in np.atleast_1d(axes).ravel():
+        ax.axis("off")
+    for ax, img, title in zip(np.atleast_1d(axes).ravel(), images, titles, strict=False):
+        ax.imshow(img)
+        ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+def trajectory_figure(
+    tracks: dict[str, np.ndarray],
+    up: np.ndarray,
+    target: np.ndarray,
+    reference: str = "exact",
+) -> Figure:
+    """Camera-centre tracks (name -> (N, 3) metres): a top view, the height above ``target``
+    per frame, and each track's distance to the ``reference`` track per frame, in mm."""
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    helper = np.array([1.0, 0, 0]) if abs(up[0]) < 0.9 else np.array([0, 0, 1.0])
+    e1 = np.cross(up, helper)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(up, e1)
+    target = np.asarray(target, float)
+    fig, (top, side, err) = plt.subplots(1, 3, figsize=(14, 4.2))
+    for name, c in tracks.items():
+        d = (np.asarray(c) - target) * 100
+        top.plot(d @ e1, d @ e2, ".-", ms=3, lw=0.8, label=name)
+        side.plot(np.arange(len(d)), d @ up, ".-", ms=3, lw=0.8, label=name)
+        if name != reference and reference in tracks:
+            mm = np.linalg.norm(np.asarray(c) - tracks[reference], axis=1) * 1000
+            err.plot(np.arange(len(mm)), mm, ".-", ms=3, lw=0.8, label=name)
+    top.plot(0, 0, "k+", ms=10, label="object")
+    top.set_aspect("equal")
+    top.set(xlabel="cm", ylabel="cm", title="camera centres, seen from above")
+    side.set(xlabel="frame", ylabel="cm", title="camera height above the object centre")
+    err.set(xlabel="frame", ylabel="mm", title=f"camera-centre distance to the {reference} one")
+    top.legend(fontsize=8)
+    err.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def save_figure(fig: Figure, path: Path, dpi: int = 120) -> Path:
+    """Write ``fig`` as PNG to ``path`` atomically and return the path."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
+    write_bytes_atomic(Path(path), buf.getvalue())
+    return Path(path)
