@@ -1,0 +1,435 @@
+"""Metric camera poses: pycolmap structure-from-motion aligned to the phone's AR poses.
+
+In: a :class:`~volec.capture.Capture` (images, intrinsics, AR camera-to-world poses in metres)
+and an :class:`SfmConfig`. Out: an :class:`SfmResult` with refined metric poses in the
+capture's world frame, the sparse metric point cloud, which frames registered, the
+world-from-model similarity, and a summary (counts, reprojection error, residuals, timings).
+On disk (:func:`run_sfm` with a work folder): ``sfm/database.db``, ``sfm/pairs.txt``, the
+metric COLMAP model in ``sfm/model`` (openable in COLMAP's GUI), ``sfm/points.ply`` and
+``sfm/summary.json``.
+
+Why the alignment is done this way: AR poses are metric but drift slowly; COLMAP's are
+consistent but unscaled. A Sim(3) fitted to all camera centres absorbs the drift into its
+scale. Drift is low-frequency, so the displacement between frames a few seconds apart is
+nearly drift-free: :func:`short_baseline_scale` estimates the scale from those displacements
+alone. Both estimates are computed; ``SfmConfig.scale_method`` picks one (the benchmark in
+``benchmarks/bench_sfm.py`` decides the default).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import shutil
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from volec.capture import PIXEL_CENTRE_OFFSET, Capture
+from volec.errors import VolecError
+from volec.geometry import invert_rigid, make_transform, rotation_angle_deg
+from volec.io import write_json_atomic
+
+log = logging.getLogger(__name__)
+
+
+class SfmError(VolecError):
+    """Structure from motion could not give trustworthy metric poses for this capture."""
+
+
+@dataclass(frozen=True)
+class SfmConfig:
+    """Options of the SfM stage; the defaults suit a 100-frame phone orbit."""
+
+    max_image_size_px: int = 1024
+    """Images are downscaled to at most this many pixels on the long side for SIFT."""
+    max_num_features: int = 4096
+    """SIFT features kept per image."""
+    sift_first_octave: int = -1
+    """SIFT's first octave: -1 upsamples the image twice (more, smaller features, slower)."""
+    pairing: Literal["ar_guided", "sequential", "exhaustive"] = "ar_guided"
+    """How image pairs are chosen for matching. ``ar_guided``: frames whose AR viewing
+    directions to the scene centre are within ``pair_max_angle_deg`` (this closes loops
+    without a vocabulary tree); ``sequential``: the ``sequential_overlap`` next frames;
+    ``exhaustive``: all pairs (small captures only)."""
+    pair_max_angle_deg: float = 35.0
+    """Largest angle between two frames' viewing directions for ``ar_guided`` pairing."""
+    pair_max_per_image: int = 12
+    """At most this many partners per image for ``ar_guided`` pairing (nearest first)."""
+    sequential_overlap: int = 8
+    """Partners per image for ``sequential`` pairing (also always added by ``ar_guided``)."""
+    ba_global_growth_ratio: float = 1.4
+    """Global bundle adjustment runs when the model has grown by this factor (COLMAP: 1.1)."""
+    ba_max_iterations: int = 30
+    """Iteration cap of each bundle adjustment (COLMAP: unlimited)."""
+    min_frames: int = 8
+    """Fewer frames than this is an error."""
+    min_registered_fraction: float = 0.5
+    """Fewer registered frames than this fraction is an error."""
+    scale_method: Literal["short_baseline", "sim3_all"] = "short_baseline"
+    """Which metric scale to keep (both are computed and reported)."""
+    short_baseline_max_frames: int = 6
+    """Largest frame separation of the displacement pairs used by ``short_baseline``."""
+    alignment_inlier_m: float = 0.02
+    """RANSAC inlier threshold of the Sim(3) fit on camera centres, metres."""
+    max_alignment_residual_m: float = 0.03
+    """Median camera-centre residual (metres) above which the AR poses are taken to
+    disagree with the images, and the stage fails."""
+    num_threads: int = -1
+    """Threads for COLMAP (-1: all cores)."""
+    seed: int = 0
+    """Seed for COLMAP's and the alignment's RANSAC."""
+
+
+PRESETS: dict[str, SfmConfig] = {
+    "default": SfmConfig(),
+    "exhaustive": SfmConfig(pairing="exhaustive"),
+}
+
+
+@dataclass(eq=False)
+class SfmResult:
+    """Refined metric poses and the sparse cloud, in the capture's world frame."""
+
+    frame_names: list[str]
+    """Frame names, in capture order."""
+    T_world_from_cam: np.ndarray
+    """(N, 4, 4) refined camera-to-world poses, OpenCV axes, metres. Frames that did not
+    register keep their AR pose (see ``registered``)."""
+    registered: np.ndarray
+    """(N,) True where the frame registered in the SfM model."""
+    points_xyz: np.ndarray
+    """(M, 3) sparse points, metres, world frame."""
+    points_rgb: np.ndarray
+    """(M, 3) uint8 colours of the sparse points."""
+    world_from_model: np.ndarray
+    """4x4 similarity (scale * rotation | translation) mapping the COLMAP model to the world."""
+    summary: dict[str, Any] = field(default_factory=dict)
+    """Counts, reprojection error, scale estimates, residuals and timings (JSON-able)."""
+
+    @property
+    def scale(self) -> float:
+        """Metres per COLMAP model unit."""
+        return float(np.cbrt(np.linalg.det(self.world_from_model[:3, :3])))
+
+
+# ----------------------------------------------------------------------------- pairing
+
+
+def _viewing_directions(capture: Capture) -> np.ndarray:
+    """Unit vectors from each camera towards the point the cameras jointly look at."""
+    centres = capture.camera_centres
+    axes = np.stack([f.T_world_from_cam[:3, 2] for f in capture.frames])
+    # Least-squares point closest to all optical axes.
+    A = np.zeros((3, 3))
+    b = np.zeros(3)
+    for c, a in zip(centres, axes, strict=True):
+        P = np.eye(3) - np.outer(a, a)
+        A += P
+        b += P @ c
+    target = np.linalg.lstsq(A, b, rcond=None)[0]
+    d = target - centres
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def select_pairs(capture: Capture, cfg: SfmConfig) -> list[tuple[int, int]]:
+    """Image pairs (i < j) to match, by ``cfg.pairing``."""
+    n = len(capture)
+    pairs: set[tuple[int, int]] = set()
+    if cfg.pairing == "exhaustive":
+        return [(i, j) for i in range(n) for j in range(i + 1, n)]
+    for i in range(n):
+        for j in range(i + 1, min(n, i + 1 + cfg.sequential_overlap)):
+            pairs.add((i, j))
+    if cfg.pairing == "ar_guided":
+        d = _viewing_directions(capture)
+        cos = np.clip(d @ d.T, -1, 1)
+        limit = np.cos(np.radians(cfg.pair_max_angle_deg))
+        for i in range(n):
+            order = np.argsort(-cos[i])
+            partners = [j for j in order if j != i and cos[i, j] >= limit]
+            for j in partners[: cfg.pair_max_per_image]:
+                pairs.add((min(i, j), max(i, j)))
+    elif cfg.pairing != "sequential":
+        raise ValueError(f"unknown pairing '{cfg.pairing}'")
+    return sorted(pairs)
+
+
+# ----------------------------------------------------------------------------- scale
+
+
+def umeyama(src: np.ndarray, dst: np.ndarray, with_scale: bool = True) -> np.ndarray:
+    """Least-squares similarity ``dst ~ s R src + t`` (Umeyama 1991) as a 4x4 matrix."""
+    mu_s, mu_d = src.mean(0), dst.mean(0)
+    xs, xd = src - mu_s, dst - mu_d
+    U, S, Vt = np.linalg.svd(xd.T @ xs / len(src))
+    D = np.eye(3)
+    if np.linalg.det(U) * np.linalg.det(Vt) < 0:
+        D[2, 2] = -1
+    R = U @ D @ Vt
+    s = float(np.trace(np.diag(S) @ D) / xs.var(0).sum()) if with_scale else 1.0
+    return make_transform(s * R, mu_d - s * R @ mu_s)
+
+
+def rotation_mean(rotations: np.ndarray) -> np.ndarray:
+    """Chordal L2 mean of (N, 3, 3) rotations: the rotation nearest their arithmetic mean."""
+    U, _, Vt = np.linalg.svd(rotations.mean(axis=0))
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    return U @ D @ Vt
+
+
+def short_baseline_scale(
+    model_centres: np.ndarray, ar_centres: np.ndarray, rotation: np.ndarray, max_sep: int
+) -> float:
+    """Metres per model unit from displacements between frames at most ``max_sep`` apart.
+
+    Slow AR drift nearly cancels in such displacements; the scale is the least-squares fit
+    ``delta_ar ~ s R delta_model`` over all of them (``rotation`` from a first Sim(3) fit).
+    Frames are in capture order; both arrays hold only frames present in both.
+    """
+    num, den = 0.0, 0.0
+    for k in range(1, max_sep + 1):
+        dm = (model_centres[k:] - model_centres[:-k]) @ rotation.T
+        da = ar_centres[k:] - ar_centres[:-k]
+        num += float(np.einsum("ij,ij->", da, dm))
+        den += float(np.einsum("ij,ij->", dm, dm))
+    if den <= 0:
+        raise SfmError("the cameras did not move: no baseline to measure the scale from")
+    return num / den
+
+
+def _robust_sim3(src: np.ndarray, dst: np.ndarray, inlier_m: float, seed: int) -> np.ndarray:
+    """RANSAC Sim(3) (pycolmap LO-RANSAC) refined by Umeyama on the inliers."""
+    import pycolmap
+
+    opts = pycolmap.RANSACOptions(max_error=inlier_m, random_seed=seed)
+    found = pycolmap.estimate_sim3d_robust(src, dst, opts)  # a dict, or None
+    if not found or found.get("num_inliers", 0) < 3:
+        raise SfmError("no similarity maps the SfM camera centres onto the AR ones")
+    M = make_transform(np.zeros((3, 3)), np.zeros(3))
+    M[:3, :4] = found["tgt_from_src"].matrix()
+    residual = np.linalg.norm(src @ M[:3, :3].T + M[:3, 3] - dst, axis=1)
+    inliers = residual < inlier_m
+    return umeyama(src[inliers], dst[inliers]) if inliers.sum() >= 3 else M
+
+
+# ----------------------------------------------------------------------------- the stage
+
+
+def _camera_params(capture: Capture) -> tuple[str, str]:
+    intr = capture.frames[0].intrinsics
+    if any(f.intrinsics != intr for f in capture.frames):
+        raise SfmError(
+            "frames have different intrinsics; volec's SfM stage expects one camera per "
+            "capture (a phone capture at one zoom)"
+        )
+    cx, cy = intr.cx + PIXEL_CENTRE_OFFSET, intr.cy + PIXEL_CENTRE_OFFSET  # COLMAP convention
+    if intr.is_undistorted:
+        return "PINHOLE", f"{intr.fx},{intr.fy},{cx},{cy}"
+    if intr.model == "OPENCV":
+        k = ",".join(str(x) for x in intr.distortion)
+        return "OPENCV", f"{intr.fx},{intr.fy},{cx},{cy},{k}"
+    raise SfmError(f"camera model {intr.model} with distortion is not supported by SfM yet")
+
+
+def run_sfm(capture: Capture, work_dir: Path, cfg: SfmConfig | None = None) -> SfmResult:
+    """Run SfM on ``capture`` in ``work_dir/sfm`` (replaced if present) and align it to the
+    AR poses. Raises :class:`SfmError` with advice when the result cannot be trusted."""
+    import pycolmap
+
+    cfg = cfg or SfmConfig()
+    n = len(capture)
+    if n < cfg.min_frames:
+        raise SfmError(f"the capture has {n} frames; SfM needs at least {cfg.min_frames}")
+    sfm_dir = Path(work_dir) / "sfm"
+    if sfm_dir.exists():
+        shutil.rmtree(sfm_dir)
+    sfm_dir.mkdir(parents=True)
+    db = sfm_dir / "database.db"
+    names = [f.name for f in capture.frames]
+    timings: dict[str, float] = {}
+
+    t = time.perf_counter()
+    model, params = _camera_params(capture)
+    reader = pycolmap.ImageReaderOptions(camera_model=model, camera_params=params)
+    extraction = pycolmap.FeatureExtractionOptions(
+        max_image_size=cfg.max_image_size_px, num_threads=cfg.num_threads
+    )
+    extraction.sift.max_num_features = cfg.max_num_features
+    extraction.sift.first_octave = cfg.sift_first_octave
+    pycolmap.extract_features(
+        db, capture.root, image_names=names, camera_mode=pycolmap.CameraMode.SINGLE,
+        reader_options=reader, extraction_options=extraction, device=pycolmap.Device.cpu,
+    )
+    timings["extract_s"] = time.perf_counter() - t
+    with pycolmap.Database.open(db) as database:
+        n_kp = [database.num_keypoints_for_image(im.image_id) for im in
+                database.read_all_images()]
+    textureless = [names[i] for i, k in enumerate(n_kp) if k < 50]
+    if len(textureless) > n / 2:
+        raise SfmError(
+            f"{len(textureless)} of {n} frames have fewer than 50 SIFT features (textureless "
+            "or blurred); recapture with more of the table in view and steadier motion"
+        )
+
+    t = time.perf_counter()
+    pairs = select_pairs(capture, cfg)
+    pairs_file = sfm_dir / "pairs.txt"
+    pairs_file.write_text("".join(f"{names[i]} {names[j]}\n" for i, j in pairs))
+    matching = pycolmap.FeatureMatchingOptions(num_threads=cfg.num_threads)
+    pycolmap.match_image_pairs(
+        db, matching_options=matching,
+        pairing_options=pycolmap.ImportedPairingOptions(match_list_path=pairs_file),
+        device=pycolmap.Device.cpu,
+    )
+    timings["match_s"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    opts = pycolmap.IncrementalPipelineOptions(
+        ba_refine_focal_length=False, ba_refine_principal_point=False,
+        ba_refine_extra_params=False, multiple_models=False,
+        num_threads=cfg.num_threads, random_seed=cfg.seed,
+        # Global bundle adjustment after each 40 % growth of the model rather than each 10 %,
+        # and capped iterations: the largest cost on 2 cores, with no loss of accuracy on the
+        # benchmark (benchmarks/bench_sfm.py).
+        ba_global_frames_ratio=cfg.ba_global_growth_ratio,
+        ba_global_points_ratio=cfg.ba_global_growth_ratio,
+        ba_global_max_num_iterations=cfg.ba_max_iterations,
+        ba_local_max_num_iterations=cfg.ba_max_iterations,
+    )
+    maps = pycolmap.incremental_mapping(db, capture.root, sfm_dir / "colmap", opts)
+    timings["map_s"] = time.perf_counter() - t
+    if not maps:
+        raise SfmError(
+            "COLMAP could not build a model: too few matches between frames. Check that the "
+            "frames overlap (a slow orbit) and are sharp"
+        )
+    rec = max(maps.values(), key=lambda r: r.num_reg_images())
+
+    t = time.perf_counter()
+    result = align_to_ar(capture, rec, cfg)
+    timings["align_s"] = time.perf_counter() - t
+    result.summary["timings_s"] = {k: round(v, 3) for k, v in timings.items()}
+    result.summary["pairs"] = len(pairs)
+    result.summary["keypoints_median"] = int(np.median(n_kp))
+    result.summary["textureless_frames"] = textureless
+    result.summary["config"] = asdict(cfg)
+
+    sim = pycolmap.Sim3d(
+        result.scale,
+        pycolmap.Rotation3d(result.world_from_model[:3, :3] / result.scale),
+        result.world_from_model[:3, 3],
+    )
+    rec.transform(sim)
+    (sfm_dir / "model").mkdir()
+    rec.write(sfm_dir / "model")
+    rec.export_PLY(sfm_dir / "points.ply")
+    shutil.rmtree(sfm_dir / "colmap", ignore_errors=True)
+    write_json_atomic(sfm_dir / "summary.json", result.summary)
+    np.save(sfm_dir / "T_world_from_cam.npy", result.T_world_from_cam)
+    np.save(sfm_dir / "registered.npy", result.registered)
+    log.info(
+        "SfM: %d/%d frames registered, scale %.5f m/unit (%s), residual median %.2f mm",
+        result.summary["registered"], n, result.scale, cfg.scale_method,
+        result.summary["residual_median_m"] * 1000,
+    )
+    return result
+
+
+def align_to_ar(capture: Capture, rec: Any, cfg: SfmConfig) -> SfmResult:
+    """Map a pycolmap reconstruction of ``capture`` into its metric world frame."""
+    names = [f.name for f in capture.frames]
+    index = {name: i for i, name in enumerate(names)}
+    reg_idx, model_T = [], []
+    for image in rec.images.values():
+        if image.has_pose and image.name in index:
+            reg_idx.append(index[image.name])
+            cfw = np.vstack([image.cam_from_world().matrix(), [0, 0, 0, 1]])
+            model_T.append(invert_rigid(cfw))
+    n = len(names)
+    order = np.argsort(reg_idx)
+    reg_idx = np.asarray(reg_idx)[order]
+    model_T = np.asarray(model_T)[order]
+    registered = np.zeros(n, bool)
+    registered[reg_idx] = True
+    if registered.sum() < max(3, cfg.min_registered_fraction * n):
+        raise SfmError(
+            f"only {registered.sum()} of {n} frames registered; the capture needs more "
+            "overlap between frames or more texture"
+        )
+    model_c = model_T[:, :3, 3]
+    ar_c = capture.camera_centres[reg_idx]
+
+    sim_all = _robust_sim3(model_c, ar_c, cfg.alignment_inlier_m, cfg.seed)
+    s_all = float(np.cbrt(np.linalg.det(sim_all[:3, :3])))
+    R_centres = sim_all[:3, :3] / s_all
+    # The rotation from camera centres is only as good as drift / orbit radius (about half a
+    # degree); the AR orientations drift a few tenths of a degree at most, so their mean
+    # offset from the SfM orientations is the better world-from-model rotation.
+    ar_R = np.stack([capture.frames[i].T_world_from_cam[:3, :3] for i in reg_idx])
+    R = rotation_mean(np.einsum("nij,nkj->nik", ar_R, model_T[:, :3, :3]))
+    s_short = short_baseline_scale(model_c, ar_c, R, cfg.short_baseline_max_frames)
+    # Same rotation, chosen scale, translation refit (least squares) to the AR centres.
+    s = s_short if cfg.scale_method == "short_baseline" else s_all
+    t = (ar_c - s * model_c @ R.T).mean(axis=0)
+    W = make_transform(s * R, t)
+    residual = np.linalg.norm(model_c @ W[:3, :3].T + W[:3, 3] - ar_c, axis=1)
+    if np.median(residual) > cfg.max_alignment_residual_m:
+        raise SfmError(
+            f"the AR poses disagree with the images: after alignment the camera centres "
+            f"differ by {np.median(residual) * 1000:.0f} mm (median), far above AR drift. Is "
+            "transform_matrix camera-to-world, in metres, with OpenGL camera axes?"
+        )
+
+    T = np.stack([f.T_world_from_cam for f in capture.frames]).copy()
+    for k, i in enumerate(reg_idx):
+        Tm = model_T[k]
+        T[i] = make_transform(R @ Tm[:3, :3], W[:3, :3] @ Tm[:3, 3] + W[:3, 3])
+
+    xyz, rgb = [], []
+    for p in rec.points3D.values():
+        xyz.append(p.xyz)
+        rgb.append(p.color)
+    xyz = np.asarray(xyz, float).reshape(-1, 3) @ W[:3, :3].T + W[:3, 3]
+    rgb = np.asarray(rgb, np.uint8).reshape(-1, 3)
+    summary = {
+        "frame_names": names,
+        "world_from_model": W.tolist(),
+        "frames": n,
+        "registered": int(registered.sum()),
+        "unregistered_frames": [names[i] for i in np.flatnonzero(~registered)],
+        "points": len(xyz),
+        "reprojection_error_px": float(rec.compute_mean_reprojection_error()),
+        "scale_method": cfg.scale_method,
+        "scale_sim3_all": s_all,
+        "scale_short_baseline": s_short,
+        "scale_short_vs_all_pct": (s_short / s_all - 1) * 100,
+        "rotation_centres_vs_orientations_deg": rotation_angle_deg(R_centres, R),
+        "residual_median_m": float(np.median(residual)),
+        "residual_max_m": float(residual.max()),
+    }
+    if summary["unregistered_frames"]:
+        log.warning("%d frames did not register and keep their AR pose: %s",
+                    n - registered.sum(), ", ".join(summary["unregistered_frames"][:10]))
+    return SfmResult(names, T, registered, xyz, rgb, W, summary)
+
+
+def load_sfm(work_dir: Path) -> SfmResult:
+    """Read a finished SfM stage back from ``work_dir/sfm``."""
+    import trimesh
+
+    sfm_dir = Path(work_dir) / "sfm"
+    summary = json.loads((sfm_dir / "summary.json").read_text())
+    cloud = trimesh.load(sfm_dir / "points.ply")
+    return SfmResult(
+        frame_names=list(summary["frame_names"]),
+        T_world_from_cam=np.load(sfm_dir / "T_world_from_cam.npy"),
+        registered=np.load(sfm_dir / "registered.npy"),
+        points_xyz=np.asarray(cloud.vertices, float),
+        points_rgb=np.asarray(cloud.colors, np.uint8)[:, :3],
+        world_from_model=np.asarray(summary["world_from_model"]),
+        summary=summary,
+    )
