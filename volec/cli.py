@@ -57,6 +57,30 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_sfm(args: argparse.Namespace) -> int:
+    from volec.capture import read_capture
+    from volec.sfm import PRESETS, load_sfm, run_sfm
+
+    work = Path(args.out)
+    if (work / "sfm" / "summary.json").exists() and not args.overwrite:
+        result = load_sfm(work)
+        print(f"{work}/sfm is already finished (pass --overwrite to redo it)")
+    else:
+        capture = read_capture(Path(args.capture),
+                               on_missing="skip" if args.skip_missing else "error")
+        cfg = PRESETS[args.preset]
+        result = run_sfm(capture, work, cfg)
+    s = result.summary
+    print(
+        f"registered {s['registered']}/{s['frames']} frames, {s['points']} points, "
+        f"reprojection {s['reprojection_error_px']:.2f} px, scale {result.scale:.5f} m/unit "
+        f"({s['scale_method']}; the two estimates differ by {s['scale_short_vs_all_pct']:+.2f} %), "
+        f"camera-centre residual to AR {s['residual_median_m'] * 1000:.1f} mm median"
+    )
+    print(f"COLMAP model: {work}/sfm/model; summary: {work}/sfm/summary.json")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``volec`` command."""
     parser = argparse.ArgumentParser(
@@ -88,6 +112,20 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument("--overwrite", action="store_true",
                        help="replace an existing output folder")
     synth.set_defaults(func=_cmd_synth)
+
+    sfm = sub.add_parser(
+        "sfm",
+        help="refine the AR poses with structure from motion (metric, in the capture's frame)",
+        description="Run pycolmap SfM on a capture and align it to its AR poses. Writes "
+        "WORKDIR/sfm (COLMAP model, sparse cloud, summary.json); the capture is only read.",
+    )
+    sfm.add_argument("capture", help="capture folder (transforms.json, or a COLMAP project)")
+    sfm.add_argument("--out", required=True, type=Path, help="work folder")
+    sfm.add_argument("--preset", default="default", choices=["default", "exhaustive"])
+    sfm.add_argument("--skip-missing", action="store_true",
+                     help="skip frames whose image file is missing (default: fail)")
+    sfm.add_argument("--overwrite", action="store_true", help="redo a finished SfM stage")
+    sfm.set_defaults(func=_cmd_sfm)
     return parser
 
 

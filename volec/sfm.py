@@ -31,7 +31,7 @@ import numpy as np
 from volec.capture import PIXEL_CENTRE_OFFSET, Capture
 from volec.errors import VolecError
 from volec.geometry import invert_rigid, make_transform, rotation_angle_deg
-from volec.io import write_json_atomic
+from volec.io import atomic_folder, write_json_atomic
 
 log = logging.getLogger(__name__)
 
@@ -236,23 +236,37 @@ def _camera_params(capture: Capture) -> tuple[str, str]:
 
 
 def run_sfm(capture: Capture, work_dir: Path, cfg: SfmConfig | None = None) -> SfmResult:
-    """Run SfM on ``capture`` in ``work_dir/sfm`` (replaced if present) and align it to the
+    """Run SfM on ``capture`` in ``work_dir/sfm`` (replaced on success) and align it to the
     AR poses. Raises :class:`SfmError` with advice when the result cannot be trusted."""
-    import pycolmap
-
     cfg = cfg or SfmConfig()
     n = len(capture)
     if n < cfg.min_frames:
         raise SfmError(f"the capture has {n} frames; SfM needs at least {cfg.min_frames}")
-    sfm_dir = Path(work_dir) / "sfm"
-    if sfm_dir.exists():
-        shutil.rmtree(sfm_dir)
-    sfm_dir.mkdir(parents=True)
+    # Built in a temporary sibling and swapped in at the end: an earlier result survives a
+    # failed or interrupted run.
+    import pycolmap
+
+    # COLMAP logs every image at INFO; keep its warnings unless volec is debugging.
+    saved_level = pycolmap.logging.minloglevel
+    if not log.isEnabledFor(logging.DEBUG):
+        pycolmap.logging.minloglevel = 1
+    try:
+        with atomic_folder(Path(work_dir) / "sfm", overwrite=True) as sfm_dir:
+            return _run_sfm_in(capture, sfm_dir, cfg)
+    finally:
+        pycolmap.logging.minloglevel = saved_level
+
+
+def _run_sfm_in(capture: Capture, sfm_dir: Path, cfg: SfmConfig) -> SfmResult:
+    import pycolmap
+
+    n = len(capture)
     db = sfm_dir / "database.db"
     names = [f.name for f in capture.frames]
     timings: dict[str, float] = {}
 
     t = time.perf_counter()
+    log.info("SfM 1/4: SIFT features of %d frames", n)
     model, params = _camera_params(capture)
     reader = pycolmap.ImageReaderOptions(camera_model=model, camera_params=params)
     extraction = pycolmap.FeatureExtractionOptions(
@@ -277,6 +291,7 @@ def run_sfm(capture: Capture, work_dir: Path, cfg: SfmConfig | None = None) -> S
 
     t = time.perf_counter()
     pairs = select_pairs(capture, cfg)
+    log.info("SfM 2/4: matching %d image pairs (%s)", len(pairs), cfg.pairing)
     pairs_file = sfm_dir / "pairs.txt"
     pairs_file.write_text("".join(f"{names[i]} {names[j]}\n" for i, j in pairs))
     matching = pycolmap.FeatureMatchingOptions(num_threads=cfg.num_threads)
@@ -288,6 +303,7 @@ def run_sfm(capture: Capture, work_dir: Path, cfg: SfmConfig | None = None) -> S
     timings["match_s"] = time.perf_counter() - t
 
     t = time.perf_counter()
+    log.info("SfM 3/4: incremental mapping")
     opts = pycolmap.IncrementalPipelineOptions(
         ba_refine_focal_length=False, ba_refine_principal_point=False,
         ba_refine_extra_params=False, multiple_models=False,
@@ -310,6 +326,7 @@ def run_sfm(capture: Capture, work_dir: Path, cfg: SfmConfig | None = None) -> S
     rec = max(maps.values(), key=lambda r: r.num_reg_images())
 
     t = time.perf_counter()
+    log.info("SfM 4/4: aligning %d registered frames to the AR poses", rec.num_reg_images())
     result = align_to_ar(capture, rec, cfg)
     timings["align_s"] = time.perf_counter() - t
     result.summary["timings_s"] = {k: round(v, 3) for k, v in timings.items()}
@@ -433,3 +450,37 @@ def load_sfm(work_dir: Path) -> SfmResult:
         world_from_model=np.asarray(summary["world_from_model"]),
         summary=summary,
     )
+
+
+def evaluate_sfm(result: SfmResult, exact: Capture, reported: Capture) -> dict[str, float]:
+    """Errors of ``result`` and of the AR poses (``reported``) against the ``exact`` poses.
+
+    Camera-centre errors in metres and rotation errors in degrees over registered frames;
+    the scale error of each scale estimate in percent (the true metres-per-unit is the
+    Umeyama scale that maps the refined centres onto the exact ones, times the chosen one).
+    """
+    reg = result.registered
+    refined_c = result.T_world_from_cam[reg, :3, 3]
+    exact_c = exact.camera_centres[reg]
+    ar_c = reported.camera_centres[reg]
+    exact_R = [exact.frames[i].T_world_from_cam[:3, :3] for i in np.flatnonzero(reg)]
+    ar_R = [reported.frames[i].T_world_from_cam[:3, :3] for i in np.flatnonzero(reg)]
+    ref_R = result.T_world_from_cam[reg, :3, :3]
+    fit = umeyama(refined_c, exact_c)
+    s_fit = float(np.cbrt(np.linalg.det(fit[:3, :3])))
+    s_true = result.scale * s_fit
+    rot_ref = [rotation_angle_deg(a, b) for a, b in zip(ref_R, exact_R, strict=True)]
+    rot_ar = [rotation_angle_deg(a, b) for a, b in zip(ar_R, exact_R, strict=True)]
+    return {
+        "registered_fraction": float(reg.mean()),
+        "ar_centre_err_median_m": float(np.median(np.linalg.norm(ar_c - exact_c, axis=1))),
+        "centre_err_median_m": float(np.median(np.linalg.norm(refined_c - exact_c, axis=1))),
+        "centre_err_max_m": float(np.max(np.linalg.norm(refined_c - exact_c, axis=1))),
+        "ar_rot_err_median_deg": float(np.median(rot_ar)),
+        "rot_err_median_deg": float(np.median(rot_ref)),
+        "rot_err_max_deg": float(np.max(rot_ref)),
+        "scale_err_pct": (result.scale / s_true - 1) * 100,
+        "scale_err_sim3_all_pct": (result.summary["scale_sim3_all"] / s_true - 1) * 100,
+        "scale_err_short_baseline_pct": (result.summary["scale_short_baseline"] / s_true - 1)
+        * 100,
+    }

@@ -1,0 +1,150 @@
+"""SfM: unit tests against analytic answers, and one small end-to-end run."""
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from volec.capture import Capture, Frame, Intrinsics, read_transforms_json
+from volec.geometry import look_at_opencv, make_transform, rotation_angle_deg, rotvec_to_matrix
+from volec.sfm import (
+    SfmConfig,
+    SfmError,
+    evaluate_sfm,
+    load_sfm,
+    rotation_mean,
+    run_sfm,
+    select_pairs,
+    short_baseline_scale,
+    umeyama,
+)
+from volec.synth import PRESETS, write_synthetic_capture
+
+INTR = Intrinsics(64, 48, 50.0, 50.0, 31.5, 23.5)
+
+
+def orbit_capture(n: int, arc_deg: float = 360.0, root: Path = Path("/nonexistent")) -> Capture:
+    frames = []
+    for i in range(n):
+        a = np.radians(arc_deg) * i / n
+        eye = np.array([0.3 * np.cos(a), 0.3 * np.sin(a), 0.2])
+        T = look_at_opencv(eye, np.zeros(3), np.array([0.0, 0.0, 1.0]))
+        frames.append(Frame(f"f{i}.png", root / f"f{i}.png", INTR, T))
+    return Capture(root, tuple(frames))
+
+
+def test_pairing_counts_and_loop_closure():
+    cap = orbit_capture(40)
+    assert len(select_pairs(cap, SfmConfig(pairing="exhaustive"))) == 40 * 39 // 2
+    seq = select_pairs(cap, SfmConfig(pairing="sequential", sequential_overlap=5))
+    assert len(seq) == sum(min(5, 39 - i) for i in range(40))
+    assert (0, 39) not in seq
+    guided = select_pairs(cap, SfmConfig(pairing="ar_guided", pair_max_angle_deg=30))
+    assert (0, 39) in guided  # last frame sees what the first saw: the loop closes
+    assert (0, 20) not in guided  # opposite sides are not matched
+
+
+def test_umeyama_recovers_a_known_similarity():
+    rng = np.random.default_rng(0)
+    src = rng.normal(size=(30, 3))
+    truth = make_transform(2.5 * rotvec_to_matrix(np.array([0.3, -0.2, 1.0])), [1.0, 2, 3])
+    dst = src @ truth[:3, :3].T + truth[:3, 3]
+    np.testing.assert_allclose(umeyama(src, dst), truth, atol=1e-10)
+
+
+def test_rotation_mean_of_small_perturbations():
+    rng = np.random.default_rng(1)
+    R0 = rotvec_to_matrix(np.array([0.5, 0.1, -0.4]))
+    noisy = np.stack([rotvec_to_matrix(rng.normal(scale=0.01, size=3)) @ R0 for _ in range(400)])
+    assert rotation_angle_deg(rotation_mean(noisy), R0) < 0.1
+
+
+def test_short_baseline_scale_ignores_slow_drift():
+    # A model trajectory, the AR one = 0.08 x model (rotated, shifted) + slow drift that
+    # is large compared with the orbit. Short displacements keep the scale.
+    t = np.linspace(0, 1, 100)
+    model = np.stack([np.cos(2 * np.pi * t), np.sin(2 * np.pi * t), 0.3 * np.sin(6 * t)], 1) * 4
+    R = rotvec_to_matrix(np.array([0.1, 0.2, 0.3]))
+    drift = 0.01 * np.stack([t**2, np.sin(np.pi * t), t], 1)  # 1 cm over the capture
+    ar = 0.08 * model @ R.T + [0.5, 0.1, -0.2] + drift
+    s_short = short_baseline_scale(model, ar, R, max_sep=3)
+    s_all = float(np.cbrt(np.linalg.det(umeyama(model, ar)[:3, :3])))
+    assert abs(s_short / 0.08 - 1) < 0.002
+    assert abs(s_short / 0.08 - 1) < abs(s_all / 0.08 - 1)
+
+
+def test_too_few_frames_is_an_error(tmp_path):
+    with pytest.raises(SfmError, match="at least 8"):
+        run_sfm(orbit_capture(4), tmp_path)
+
+
+def test_textureless_frames_are_an_error(tmp_path):
+    cap = orbit_capture(10, arc_deg=60, root=tmp_path)
+    for f in cap.frames:
+        Image.new("RGB", (64, 48), (128, 128, 128)).save(f.image_path)
+    with pytest.raises(SfmError, match="textureless"):
+        run_sfm(cap, tmp_path / "work")
+    assert not (tmp_path / "work" / "sfm").exists()  # nothing half-written is left
+
+
+@pytest.fixture(scope="module")
+def small_capture(tmp_path_factory) -> Path:
+    """16 full-size frames over a 100-degree arc: enough for SfM, fast to render."""
+    cfg = PRESETS["default"].with_(n_frames=16, arc_deg=100.0)
+    return write_synthetic_capture("chocolate_cake", tmp_path_factory.mktemp("sfm") / "cake",
+                                   cfg, progress=False)
+
+
+@pytest.fixture(scope="module")
+def small_result(small_capture):
+    cap = read_transforms_json(small_capture / "capture")
+    return run_sfm(cap, small_capture / "work"), cap
+
+
+def test_sfm_recovers_metric_poses(small_capture, small_result):
+    result, reported = small_result
+    exact = read_transforms_json(small_capture / "ground_truth" / "transforms_exact.json")
+    errors = evaluate_sfm(result, exact, reported)
+    assert errors["registered_fraction"] >= 0.9
+    assert abs(errors["scale_err_pct"]) < 1.0
+    assert errors["centre_err_median_m"] < 0.004
+    assert errors["rot_err_median_deg"] < 0.5
+    assert len(result.points_xyz) > 500
+    # the sparse points lie near the scene: within 1 m of the cameras' mean
+    assert np.median(np.linalg.norm(result.points_xyz - reported.camera_centres.mean(0),
+                                    axis=1)) < 1.0
+
+
+def test_sfm_writes_an_openable_model_and_reloads(small_capture, small_result):
+    from volec.capture import read_colmap_model
+
+    result, reported = small_result
+    work = small_capture / "work"
+    model = read_colmap_model(work / "sfm" / "model", reported.root)
+    assert len(model) == result.registered.sum()
+    again = load_sfm(work)
+    np.testing.assert_allclose(again.T_world_from_cam, result.T_world_from_cam)
+    assert again.summary["registered"] == result.summary["registered"]
+    # the written model is metric: its cameras are where the refined poses are
+    names = {f.name: f for f in model.frames}
+    i = int(np.flatnonzero(result.registered)[0])
+    np.testing.assert_allclose(names[result.frame_names[i]].camera_centre,
+                               result.T_world_from_cam[i, :3, 3], atol=1e-6)
+
+
+def test_ar_poses_that_disagree_with_the_images_are_an_error(small_capture, small_result):
+    import pycolmap
+
+    from volec.sfm import align_to_ar
+
+    _, reported = small_result
+    rng = np.random.default_rng(0)
+    order = rng.permutation(len(reported))
+    shuffled = Capture(reported.root, tuple(
+        replace(f, T_world_from_cam=reported.frames[j].T_world_from_cam)
+        for f, j in zip(reported.frames, order, strict=True)))
+    rec = pycolmap.Reconstruction(str(small_capture / "work" / "sfm" / "model"))
+    with pytest.raises(SfmError, match="disagree|no similarity"):
+        align_to_ar(shuffled, rec, SfmConfig())
