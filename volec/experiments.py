@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import pandas as pd
 
 from volec.capture import read_transforms_json
 from volec.io import write_json_atomic
+from volec.sfm import SfmConfig, evaluate_sfm, run_sfm
 from volec.synth import PRESETS as SYNTH_PRESETS
 from volec.synth import SynthConfig, write_synthetic_capture
 
@@ -47,16 +48,16 @@ def scenarios(quick: bool) -> dict[str, Scenario]:
 def ensure_capture(root: Path, item: str, scenario: Scenario) -> Path:
     """The synthetic capture folder for (item, scenario), generated if missing."""
     out = Path(root) / f"{item}-{scenario.name}"
-    if not (out / "ground_truth" / "truth.json").exists():
+    truth = out / "ground_truth" / "truth.json"
+    if not truth.exists() or json.loads(truth.read_text())["config"] != scenario.synth.recorded():
         write_synthetic_capture(item, out, scenario.synth, overwrite=True, progress=False)
     return out
 
 
 def sfm_experiment(
-    root: Path, items: list[str], scenario_list: list[Scenario], cfg: object | None = None
+    root: Path, items: list[str], scenario_list: list[Scenario], cfg: SfmConfig | None = None
 ) -> pd.DataFrame:
-    """SfM errors and wall time per (item, scenario), cached per run."""
-    from volec.sfm import SfmConfig, evaluate_sfm, run_sfm
+    """SfM errors and wall time per (item, scenario), cached per run and config."""
 
     cfg = cfg or SfmConfig()
     rows = []
@@ -64,9 +65,12 @@ def sfm_experiment(
         for item in items:
             out = ensure_capture(root, item, scenario)
             cache = out / "work" / "sfm_eval.json"
+            key = json.loads(json.dumps(asdict(cfg)))
             if cache.exists():
-                rows.append(json.loads(cache.read_text()))
-                continue
+                cached = json.loads(cache.read_text())
+                if cached.pop("sfm_config", None) == key:
+                    rows.append(cached)
+                    continue
             reported = read_transforms_json(out / "capture")
             exact = read_transforms_json(out / "ground_truth" / "transforms_exact.json",
                                          check_image_sizes=False)
@@ -76,7 +80,7 @@ def sfm_experiment(
                    "wall_s": time.perf_counter() - start,
                    **evaluate_sfm(result, exact, reported),
                    **{f"{k}_s": v for k, v in result.summary["timings_s"].items()}}
-            write_json_atomic(cache, row)
+            write_json_atomic(cache, {**row, "sfm_config": key})
             rows.append(row)
     return pd.DataFrame(rows)
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from volec.geometry import look_at_opencv, make_transform, rotvec_to_matrix
 
@@ -45,7 +46,7 @@ class TrajectoryConfig:
 
 @dataclass(frozen=True)
 class DriftConfig:
-    """How AR tracking errs: smooth drift growing from zero, plus frame-to-frame jitter."""
+    """How AR tracking errs: a smooth random-walk drift from zero, plus frame-to-frame jitter."""
 
     position_m: float = 0.005
     """Largest camera-centre drift over the capture, metres."""
@@ -68,6 +69,20 @@ def _smooth_curve(
         amp = rng.normal(size=dims) / (k + 1)
         out += amp * np.sin(2 * np.pi * freq * t[:, None] + phase)
     return out / max(np.abs(out).max(), 1e-12)
+
+
+def _random_walk(rng: np.random.Generator, n: int, largest: float) -> np.ndarray:
+    """(n, 3) smooth random walk from zero whose largest norm is ``largest``.
+
+    Visual-inertial tracking drifts because sensor noise is integrated: a random walk that
+    starts at zero when the session starts. Its increments are independent of how the phone
+    moves, which is what lets short-baseline displacements measure scale (volec.sfm).
+    """
+    steps = rng.normal(size=(n, 3))
+    walk = np.cumsum(steps, axis=0)
+    walk = gaussian_filter1d(walk, sigma=max(n / 50.0, 1.0), axis=0, mode="nearest")
+    walk -= walk[0]
+    return walk * (largest / max(np.linalg.norm(walk, axis=1).max(), 1e-12))
 
 
 def handheld_orbit(
@@ -113,16 +128,11 @@ def ar_reported_poses(
     """What AR tracking reports for the ``exact`` poses: drift (zero at the first frame) + jitter.
 
     Drift moves each camera centre by up to ``position_m`` and turns it by up to
-    ``rotation_deg`` (about its own centre), both varying smoothly over the capture.
+    ``rotation_deg`` (about its own centre); both are smooth random walks from zero.
     """
     n = len(exact)
-    t = np.linspace(0.0, 1.0, n)
-    pos = _smooth_curve(rng, t, 3, 1.5)
-    pos -= pos[0]
-    pos *= cfg.position_m / max(np.linalg.norm(pos, axis=1).max(), 1e-12)
-    rot = _smooth_curve(rng, t, 3, 1.5)
-    rot -= rot[0]
-    rot *= np.radians(cfg.rotation_deg) / max(np.linalg.norm(rot, axis=1).max(), 1e-12)
+    pos = _random_walk(rng, n, cfg.position_m)
+    rot = _random_walk(rng, n, np.radians(cfg.rotation_deg))
     pos = pos + rng.normal(scale=cfg.jitter_position_m, size=(n, 3))
     rot = rot + rng.normal(scale=np.radians(cfg.jitter_rotation_deg), size=(n, 3))
     out = np.empty_like(exact)
