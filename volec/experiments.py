@@ -95,6 +95,7 @@ SFM_COLUMNS = {
     "rot_err_median_deg": 1.0,
     "scale_err_sim3_all_pct": 1.0,
     "scale_err_short_baseline_pct": 1.0,
+    "scale_err_drift_model_pct": 1.0,
     "wall_s": 1.0,
 }
 
@@ -107,6 +108,9 @@ def sfm_error_table(raw: pd.DataFrame) -> pd.DataFrame:
         shown[col] = shown[col] * factor
     shown = shown.rename(columns=lambda c: c[:-2] + "_mm" if c.endswith("_m") else c)
     numeric = shown.columns.drop(["item", "scenario"])
-    means = shown.groupby("scenario", sort=False)[numeric].mean().reset_index()
-    means.insert(0, "item", "mean")
+    # Signed errors would cancel in a mean: the mean rows average their magnitudes.
+    magnitudes = shown.copy()
+    magnitudes[numeric] = magnitudes[numeric].abs()
+    means = magnitudes.groupby("scenario", sort=False)[numeric].mean().reset_index()
+    means.insert(0, "item", "mean |.|")
     return pd.concat([shown, means], ignore_index=True)

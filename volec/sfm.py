@@ -8,12 +8,14 @@ On disk (:func:`run_sfm` with a work folder): ``sfm/database.db``, ``sfm/pairs.t
 metric COLMAP model in ``sfm/model`` (openable in COLMAP's GUI), ``sfm/points.ply`` and
 ``sfm/summary.json``.
 
-Why the alignment is done this way: AR poses are metric but drift slowly; COLMAP's are
-consistent but unscaled. A Sim(3) fitted to all camera centres absorbs the drift into its
-scale. Drift is low-frequency, so the displacement between frames a few seconds apart is
-nearly drift-free: :func:`short_baseline_scale` estimates the scale from those displacements
-alone. Both estimates are computed; ``SfmConfig.scale_method`` picks one (the benchmark in
-``benchmarks/bench_sfm.py`` decides the default).
+Why the alignment is done this way: AR poses are metric but drift; COLMAP's are consistent
+but unscaled. Visual-inertial drift is a random walk that is zero where the AR session starts.
+A Sim(3) fitted to all camera centres absorbs the drift into its scale and offset;
+:func:`short_baseline_scale` uses only displacements between nearby frames, where drift
+nearly cancels; :func:`drift_model_alignment` solves for scale, translation and the drift
+itself by generalised least squares under that random-walk model, which also removes the
+drift's offset from the camera centres. All three are computed and reported;
+``SfmConfig.scale_method`` picks one (``benchmarks/bench_sfm.py`` measured the default).
 """
 
 from __future__ import annotations
@@ -69,8 +71,20 @@ class SfmConfig:
     """Fewer frames than this is an error."""
     min_registered_fraction: float = 0.5
     """Fewer registered frames than this fraction is an error."""
-    scale_method: Literal["short_baseline", "sim3_all"] = "short_baseline"
-    """Which metric scale to keep (both are computed and reported)."""
+    scale_method: Literal["drift_model", "short_baseline", "sim3_all"] = "drift_model"
+    """Which metric alignment to keep (all three are computed and reported).
+    ``drift_model``: generalised least squares with the AR drift as a random walk from zero
+    (scale, translation and per-frame drift jointly; orientation by a mean weighted the same
+    way); ``short_baseline``: scale from displacements between nearby frames;
+    ``sim3_all``: a Sim(3) fitted to all camera centres."""
+    ar_jitter_m: float = 0.0003
+    """Drift model: standard deviation of the AR position noise of one frame, metres."""
+    ar_drift_m_per_sqrt_frame: float = 0.0005
+    """Drift model: random-walk growth of the AR position drift, metres per sqrt(frame)."""
+    ar_rot_jitter_deg: float = 0.02
+    """Drift model: standard deviation of the AR orientation noise of one frame, degrees."""
+    ar_rot_drift_deg_per_sqrt_frame: float = 0.03
+    """Drift model: random-walk growth of the AR orientation drift, degrees per sqrt(frame)."""
     short_baseline_max_frames: int = 6
     """Largest frame separation of the displacement pairs used by ``short_baseline``."""
     alignment_inlier_m: float = 0.02
@@ -199,6 +213,68 @@ def short_baseline_scale(
     if den <= 0:
         raise SfmError("the cameras did not move: no baseline to measure the scale from")
     return num / den
+
+
+def rotation_weighted_mean(rotations: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Weighted chordal L2 mean of (N, 3, 3) rotations."""
+    M = np.einsum("n,nij->ij", weights, rotations)
+    U, _, Vt = np.linalg.svd(M)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    return U @ D @ Vt
+
+
+def drift_weights(
+    frame_index: np.ndarray, jitter: float, growth_per_sqrt_frame: float
+) -> np.ndarray:
+    """Inverse variances of AR measurements whose error is jitter plus a random walk from
+    frame 0: frames early in the session are trusted most."""
+    return 1.0 / (jitter**2 + growth_per_sqrt_frame**2 * np.asarray(frame_index, float))
+
+
+def drift_model_alignment(
+    model_centres: np.ndarray,
+    ar_centres: np.ndarray,
+    frame_index: np.ndarray,
+    rotation: np.ndarray,
+    jitter_m: float,
+    drift_m_per_sqrt_frame: float,
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """Scale, translation and AR drift by generalised least squares.
+
+    Model: ``ar_i = s R m_i + t + d_i + noise_i`` with ``d`` a random walk that is zero at
+    frame 0 (the AR world is defined where the session starts), step variance
+    ``drift_m_per_sqrt_frame**2`` per frame, and white ``noise`` of std ``jitter_m``. With the
+    rotation ``R`` fixed the problem is linear in (s, t, d_1..d_n); it is solved densely
+    (a few hundred unknowns). Returns (s, t, drift (N, 3)).
+    """
+    n = len(model_centres)
+    order = np.argsort(frame_index)
+    if not np.array_equal(order, np.arange(n)):
+        raise ValueError("frames must be in capture order")
+    rm = model_centres @ rotation.T
+    n_unknown = 4 + 3 * n  # s, t, d_0..d_{n-1}; d_0 is pinned by a strong prior
+    rows, rhs = [], []
+    for i in range(n):
+        for k in range(3):
+            r = np.zeros(n_unknown)
+            r[0], r[1 + k], r[4 + 3 * i + k] = rm[i, k], 1.0, 1.0
+            rows.append(r / jitter_m)
+            rhs.append(ar_centres[i, k] / jitter_m)
+    gap0 = max(float(frame_index[0]), 1e-6)  # drift accumulated before the first registered frame
+    for k in range(3):
+        r = np.zeros(n_unknown)
+        r[4 + k] = 1.0
+        rows.append(r / (drift_m_per_sqrt_frame * np.sqrt(gap0)))
+        rhs.append(0.0)
+    for i in range(1, n):
+        step = drift_m_per_sqrt_frame * np.sqrt(float(frame_index[i] - frame_index[i - 1]))
+        for k in range(3):
+            r = np.zeros(n_unknown)
+            r[4 + 3 * i + k], r[4 + 3 * (i - 1) + k] = 1.0, -1.0
+            rows.append(r / step)
+            rhs.append(0.0)
+    x = np.linalg.lstsq(np.asarray(rows), np.asarray(rhs), rcond=None)[0]
+    return float(x[0]), x[1:4], x[4:].reshape(n, 3)
 
 
 def _robust_sim3(src: np.ndarray, dst: np.ndarray, inlier_m: float, seed: int) -> np.ndarray:
@@ -387,11 +463,21 @@ def align_to_ar(capture: Capture, rec: Any, cfg: SfmConfig) -> SfmResult:
     # degree); the AR orientations drift a few tenths of a degree at most, so their mean
     # offset from the SfM orientations is the better world-from-model rotation.
     ar_R = np.stack([capture.frames[i].T_world_from_cam[:3, :3] for i in reg_idx])
-    R = rotation_mean(np.einsum("nij,nkj->nik", ar_R, model_T[:, :3, :3]))
+    offsets = np.einsum("nij,nkj->nik", ar_R, model_T[:, :3, :3])
+    if cfg.scale_method == "drift_model":
+        w = drift_weights(reg_idx, cfg.ar_rot_jitter_deg, cfg.ar_rot_drift_deg_per_sqrt_frame)
+        R = rotation_weighted_mean(offsets, w)
+    else:
+        R = rotation_mean(offsets)
     s_short = short_baseline_scale(model_c, ar_c, R, cfg.short_baseline_max_frames)
-    # Same rotation, chosen scale, translation refit (least squares) to the AR centres.
-    s = s_short if cfg.scale_method == "short_baseline" else s_all
-    t = (ar_c - s * model_c @ R.T).mean(axis=0)
+    s_drift, t_drift, drift = drift_model_alignment(
+        model_c, ar_c, reg_idx, R, cfg.ar_jitter_m, cfg.ar_drift_m_per_sqrt_frame
+    )
+    if cfg.scale_method == "drift_model":
+        s, t = s_drift, t_drift
+    else:
+        s = s_short if cfg.scale_method == "short_baseline" else s_all
+        t = (ar_c - s * model_c @ R.T).mean(axis=0)  # least squares with R and s fixed
     W = make_transform(s * R, t)
     residual = np.linalg.norm(model_c @ W[:3, :3].T + W[:3, 3] - ar_c, axis=1)
     if np.median(residual) > cfg.max_alignment_residual_m:
@@ -423,7 +509,9 @@ def align_to_ar(capture: Capture, rec: Any, cfg: SfmConfig) -> SfmResult:
         "scale_method": cfg.scale_method,
         "scale_sim3_all": s_all,
         "scale_short_baseline": s_short,
+        "scale_drift_model": s_drift,
         "scale_short_vs_all_pct": (s_short / s_all - 1) * 100,
+        "ar_drift_estimate_max_m": float(np.linalg.norm(drift, axis=1).max()),
         "rotation_centres_vs_orientations_deg": rotation_angle_deg(R_centres, R),
         "residual_median_m": float(np.median(residual)),
         "residual_max_m": float(residual.max()),
@@ -483,4 +571,5 @@ def evaluate_sfm(result: SfmResult, exact: Capture, reported: Capture) -> dict[s
         "scale_err_sim3_all_pct": (result.summary["scale_sim3_all"] / s_true - 1) * 100,
         "scale_err_short_baseline_pct": (result.summary["scale_short_baseline"] / s_true - 1)
         * 100,
+        "scale_err_drift_model_pct": (result.summary["scale_drift_model"] / s_true - 1) * 100,
     }
