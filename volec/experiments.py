@@ -112,5 +112,5 @@ def sfm_error_table(raw: pd.DataFrame) -> pd.DataFrame:
     magnitudes = shown.copy()
     magnitudes[numeric] = magnitudes[numeric].abs()
     means = magnitudes.groupby("scenario", sort=False)[numeric].mean().reset_index()
-    means.insert(0, "item", "mean |.|")
+    means.insert(0, "item", "mean abs")
     return pd.concat([shown, means], ignore_index=True)
