@@ -22,3 +22,11 @@ def test_bad_input_is_a_clear_error_and_a_nonzero_exit(tmp_path, capsys):
     assert "unknown item 'kiwi'" in capsys.readouterr().err
     assert main(["synth", "apple"]) == 2
     assert "--out" in capsys.readouterr().err
+
+
+def test_sfm_on_a_folder_that_is_no_capture_is_a_clear_error(tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
+    assert main(["sfm", str(tmp_path / "empty"), "--out", str(tmp_path / "work")]) == 2
+    err = capsys.readouterr().err
+    assert "not a capture volec can read" in err
+    assert not (tmp_path / "work").exists()  # nothing written for bad input
