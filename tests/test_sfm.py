@@ -102,6 +102,18 @@ def test_drift_model_recovers_scale_and_the_drift_free_trajectory():
     np.testing.assert_allclose(drift, walk, atol=0.004)
 
 
+def test_rootsift_descriptors_have_unit_norm_in_colmap_units():
+    from volec.sfm import rootsift_uint8
+
+    rng = np.random.default_rng(5)
+    raw = rng.integers(0, 200, size=(50, 128)).astype(np.float32)
+    d = rootsift_uint8(raw).astype(float) / 512.0
+    np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0, atol=0.02)
+    # the square root of the L1-normalised descriptor, as COLMAP's L1_ROOT normalisation
+    expected = np.sqrt(raw / raw.sum(axis=1, keepdims=True))
+    np.testing.assert_allclose(d, expected, atol=1.0 / 512)
+
+
 def test_too_few_frames_is_an_error(tmp_path):
     with pytest.raises(SfmError, match="at least 8"):
         run_sfm(orbit_capture(4), tmp_path)
@@ -128,6 +140,15 @@ def small_capture(tmp_path_factory) -> Path:
 def small_result(small_capture):
     cap = read_transforms_json(small_capture / "capture")
     return run_sfm(cap, small_capture / "work"), cap
+
+
+def test_colmap_sift_backend_also_recovers_the_poses(small_capture, tmp_path):
+    reported = read_transforms_json(small_capture / "capture")
+    exact = read_transforms_json(small_capture / "ground_truth" / "transforms_exact.json")
+    result = run_sfm(reported, tmp_path, SfmConfig(features="colmap_sift"))
+    errors = evaluate_sfm(result, exact, reported)
+    assert errors["registered_fraction"] >= 0.9
+    assert abs(errors["scale_err_pct"]) < 1.0
 
 
 def test_sfm_recovers_metric_poses(small_capture, small_result):

@@ -121,7 +121,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sfm.add_argument("capture", help="capture folder (transforms.json, or a COLMAP project)")
     sfm.add_argument("--out", required=True, type=Path, help="work folder")
-    sfm.add_argument("--preset", default="default", choices=["default", "exhaustive"])
+    sfm.add_argument("--preset", default="default",
+                     choices=["default", "exhaustive", "colmap_sift"])
     sfm.add_argument("--skip-missing", action="store_true",
                      help="skip frames whose image file is missing (default: fail)")
     sfm.add_argument("--overwrite", action="store_true", help="redo a finished SfM stage")

@@ -48,8 +48,16 @@ class SfmConfig:
 
     max_image_size_px: int = 1024
     """Images are downscaled to at most this many pixels on the long side for SIFT."""
+    features: Literal["opencv_sift", "colmap_sift"] = "opencv_sift"
+    """SIFT implementation. ``opencv_sift``: OpenCV's SIFT, written into COLMAP's database as
+    RootSIFT (3 times faster on the CPU than COLMAP's at the same feature count);
+    ``colmap_sift``: pycolmap's own extractor."""
+    opencv_contrast_threshold: float = 0.006
+    """OpenCV SIFT contrast threshold (its default 0.04 finds few features on food)."""
     max_num_features: int = 4096
     """SIFT features kept per image."""
+    sift_peak_threshold: float = 0.0066667
+    """SIFT's contrast threshold (COLMAP's default 0.02/3); lower finds more, weaker features."""
     sift_first_octave: int = -1
     """SIFT's first octave: -1 upsamples the image twice (more, smaller features, slower)."""
     pairing: Literal["ar_guided", "sequential", "exhaustive"] = "ar_guided"
@@ -101,6 +109,7 @@ class SfmConfig:
 PRESETS: dict[str, SfmConfig] = {
     "default": SfmConfig(),
     "exhaustive": SfmConfig(pairing="exhaustive"),
+    "colmap_sift": SfmConfig(features="colmap_sift", sift_peak_threshold=0.003),
 }
 
 
@@ -311,6 +320,47 @@ def _camera_params(capture: Capture) -> tuple[str, str]:
     raise SfmError(f"camera model {intr.model} with distortion is not supported by SfM yet")
 
 
+def rootsift_uint8(descriptors: np.ndarray) -> np.ndarray:
+    """SIFT descriptors -> RootSIFT (L1-normalised, square-rooted: unit L2 norm) as COLMAP
+    stores them: ``round(512 * x)`` clipped to uint8."""
+    d = np.asarray(descriptors, np.float64)
+    d = np.sqrt(d / np.maximum(d.sum(axis=1, keepdims=True), 1e-12))
+    return np.clip(np.round(512.0 * d), 0, 255).astype(np.uint8)
+
+
+def _replace_with_opencv_sift(db: Path, image_root: Path, cfg: SfmConfig) -> None:
+    """Overwrite the keypoints and descriptors of every image in ``db`` with OpenCV SIFT.
+
+    Written because pycolmap's CPU SIFT takes 0.28 s per 480x640 frame here and OpenCV's
+    0.09 s; COLMAP reads keypoints as (x, y, scale, orientation) with pixel centres at 0.5.
+    """
+    import cv2
+    import pycolmap
+
+    sift = cv2.SIFT_create(
+        nfeatures=cfg.max_num_features, contrastThreshold=cfg.opencv_contrast_threshold
+    )
+    with pycolmap.Database.open(db) as database:
+        images = database.read_all_images()
+        database.clear_keypoints()
+        database.clear_descriptors()
+        for image in images:
+            gray = cv2.imread(str(Path(image_root) / image.name), cv2.IMREAD_GRAYSCALE)
+            if gray is None:
+                raise SfmError(f"{Path(image_root) / image.name}: cannot be read as an image")
+            kps, desc = sift.detectAndCompute(gray, None)
+            xy = np.array(
+                [[k.pt[0] + PIXEL_CENTRE_OFFSET, k.pt[1] + PIXEL_CENTRE_OFFSET, k.size / 2,
+                  np.radians(k.angle)] for k in kps], np.float32
+            ).reshape(-1, 4)
+            desc8 = rootsift_uint8(desc) if desc is not None else np.zeros((0, 128), np.uint8)
+            database.write_keypoints(image.image_id, xy)
+            database.write_descriptors(
+                image.image_id,
+                pycolmap.FeatureDescriptors(pycolmap.FeatureExtractorType.SIFT, desc8),
+            )
+
+
 def run_sfm(capture: Capture, work_dir: Path, cfg: SfmConfig | None = None) -> SfmResult:
     """Run SfM on ``capture`` in ``work_dir/sfm`` (replaced on success) and align it to the
     AR poses. Raises :class:`SfmError` with advice when the result cannot be trusted."""
@@ -350,10 +400,17 @@ def _run_sfm_in(capture: Capture, sfm_dir: Path, cfg: SfmConfig) -> SfmResult:
     )
     extraction.sift.max_num_features = cfg.max_num_features
     extraction.sift.first_octave = cfg.sift_first_octave
+    extraction.sift.peak_threshold = cfg.sift_peak_threshold
+    if cfg.features == "opencv_sift":
+        # COLMAP creates the camera, rig, frame and image records from a 64-pixel thumbnail
+        # (cheap); the features are then replaced by OpenCV's.
+        extraction.max_image_size = 64
     pycolmap.extract_features(
         db, capture.root, image_names=names, camera_mode=pycolmap.CameraMode.SINGLE,
         reader_options=reader, extraction_options=extraction, device=pycolmap.Device.cpu,
     )
+    if cfg.features == "opencv_sift":
+        _replace_with_opencv_sift(db, capture.root, cfg)
     timings["extract_s"] = time.perf_counter() - t
     with pycolmap.Database.open(db) as database:
         n_kp = [database.num_keypoints_for_image(im.image_id) for im in
