@@ -351,11 +351,6 @@ def render_preview(item: str, size_px: int = 320, seed: int = 0,
     return to_srgb8(Renderer(scene).render(K, size_px, size_px, T).rgb)
 
 
-def capture_paths(out: Path) -> tuple[Path, Path]:
-    """(capture folder, ground-truth folder) of a synthetic capture written to ``out``."""
-    return Path(out) / "capture", Path(out) / "ground_truth"
-
-
 def load_truth(out: Path) -> dict[str, Any]:
     """The ``truth.json`` of a synthetic capture written to ``out``."""
     return json.loads((Path(out) / "ground_truth" / "truth.json").read_text())
@@ -372,7 +367,6 @@ def load_ground_truth_mesh(out: Path) -> trimesh.Trimesh:
 __all__ = [
     "PRESETS",
     "SynthConfig",
-    "capture_paths",
     "load_ground_truth_mesh",
     "load_truth",
     "plan_capture",
