@@ -13,12 +13,12 @@ from volec.sfm import (
     SfmConfig,
     SfmError,
     evaluate_sfm,
+    fit_similarity,
     load_sfm,
     rotation_mean,
     run_sfm,
     select_pairs,
     short_baseline_scale,
-    umeyama,
 )
 from volec.synth import PRESETS, write_synthetic_capture
 
@@ -46,12 +46,12 @@ def test_pairing_counts_and_loop_closure():
     assert (0, 20) not in guided  # opposite sides are not matched
 
 
-def test_umeyama_recovers_a_known_similarity():
+def test_fit_similarity_recovers_a_known_similarity():
     rng = np.random.default_rng(0)
     src = rng.normal(size=(30, 3))
     truth = make_transform(2.5 * rotvec_to_matrix(np.array([0.3, -0.2, 1.0])), [1.0, 2, 3])
     dst = src @ truth[:3, :3].T + truth[:3, 3]
-    np.testing.assert_allclose(umeyama(src, dst), truth, atol=1e-10)
+    np.testing.assert_allclose(fit_similarity(src, dst), truth, atol=1e-10)
 
 
 def test_rotation_mean_of_small_perturbations():
@@ -73,7 +73,7 @@ def test_short_baseline_scale_ignores_slow_drift():
     drift = 0.01 * np.stack([t**2, np.sin(np.pi * t), t], 1)  # 1 cm over the capture
     ar = 0.08 * model @ R.T + [0.5, 0.1, -0.2] + drift
     s_short = short_baseline_scale(model, ar, R, max_sep=3)
-    s_all = float(np.cbrt(np.linalg.det(umeyama(model, ar)[:3, :3])))
+    s_all = float(np.cbrt(np.linalg.det(fit_similarity(model, ar)[:3, :3])))
     assert abs(s_short / 0.08 - 1) < 0.002
     assert abs(s_short / 0.08 - 1) < abs(s_all / 0.08 - 1)
 
@@ -112,6 +112,25 @@ def test_rootsift_descriptors_have_unit_norm_in_colmap_units():
     # the square root of the L1-normalised descriptor, as COLMAP's L1_ROOT normalisation
     expected = np.sqrt(raw / raw.sum(axis=1, keepdims=True))
     np.testing.assert_allclose(d, expected, atol=1.0 / 512)
+
+
+@pytest.mark.parametrize("max_size", [400, 200])
+def test_opencv_sift_keypoints_are_in_full_image_pixels(max_size):
+    # Dark Gaussian blobs with known centres on a 400x300 image: SIFT finds each blob at its
+    # centre, also when the image is first halved, once mapped back to full-size pixels.
+    # (Without enable_precise_upscale OpenCV put them 0.24 px off; halved, 0.7 px.)
+    from volec.sfm import opencv_sift_features
+
+    centres = np.array([[80.0, 70.0], [250.0, 90.0], [150.0, 200.0], [320.0, 230.0]])
+    v, u = np.mgrid[0:300, 0:400].astype(float)
+    img = np.full((300, 400), 220.0)
+    for cx, cy in centres:
+        img -= 150 * np.exp(-((u - cx) ** 2 + (v - cy) ** 2) / (2 * 6.0**2))
+    xy, desc = opencv_sift_features(img.astype(np.uint8), SfmConfig(max_image_size_px=max_size))
+    assert desc.shape == (len(xy), 128) and desc.dtype == np.uint8
+    found = xy[:, :2] - 0.5  # COLMAP's 0.5 convention back to pixel centres at integers
+    for c in centres:  # sub-pixel: a half-pixel convention slip or upsampling bias fails
+        assert np.linalg.norm(found - c, axis=1).min() < 0.1
 
 
 def test_too_few_frames_is_an_error(tmp_path):

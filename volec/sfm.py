@@ -47,7 +47,8 @@ class SfmConfig:
     """Options of the SfM stage; the defaults suit a 100-frame phone orbit."""
 
     max_image_size_px: int = 1024
-    """Images are downscaled to at most this many pixels on the long side for SIFT."""
+    """Images are downscaled to at most this many pixels on the long side for SIFT (both
+    backends); keypoints are reported in full-image pixels."""
     features: Literal["opencv_sift", "colmap_sift"] = "opencv_sift"
     """SIFT implementation. ``opencv_sift``: OpenCV's SIFT, written into COLMAP's database as
     RootSIFT (3 times faster on the CPU than COLMAP's at the same feature count);
@@ -57,9 +58,11 @@ class SfmConfig:
     max_num_features: int = 4096
     """SIFT features kept per image."""
     sift_peak_threshold: float = 0.0066667
-    """SIFT's contrast threshold (COLMAP's default 0.02/3); lower finds more, weaker features."""
+    """``colmap_sift`` only: SIFT's contrast threshold (COLMAP's default 0.02/3); lower finds
+    more, weaker features."""
     sift_first_octave: int = -1
-    """SIFT's first octave: -1 upsamples the image twice (more, smaller features, slower)."""
+    """``colmap_sift`` only: SIFT's first octave; -1 upsamples the image twice (more, smaller
+    features, slower; 0 broke the loop closure of 480x640 captures)."""
     pairing: Literal["ar_guided", "sequential", "exhaustive"] = "ar_guided"
     """How image pairs are chosen for matching. ``ar_guided``: frames whose AR viewing
     directions to the scene centre are within ``pair_max_angle_deg`` (this closes loops
@@ -184,24 +187,19 @@ def select_pairs(capture: Capture, cfg: SfmConfig) -> list[tuple[int, int]]:
 # ----------------------------------------------------------------------------- scale
 
 
-def umeyama(src: np.ndarray, dst: np.ndarray, with_scale: bool = True) -> np.ndarray:
-    """Least-squares similarity ``dst ~ s R src + t`` (Umeyama 1991) as a 4x4 matrix."""
-    mu_s, mu_d = src.mean(0), dst.mean(0)
-    xs, xd = src - mu_s, dst - mu_d
-    U, S, Vt = np.linalg.svd(xd.T @ xs / len(src))
-    D = np.eye(3)
-    if np.linalg.det(U) * np.linalg.det(Vt) < 0:
-        D[2, 2] = -1
-    R = U @ D @ Vt
-    s = float(np.trace(np.diag(S) @ D) / xs.var(0).sum()) if with_scale else 1.0
-    return make_transform(s * R, mu_d - s * R @ mu_s)
+def fit_similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """Least-squares similarity ``dst ~ s R src + t`` (pycolmap's Umeyama) as a 4x4 matrix."""
+    import pycolmap
+
+    sim = pycolmap.estimate_sim3d(np.asarray(src, float), np.asarray(dst, float))
+    if sim is None:
+        raise SfmError("no similarity fits these camera centres (too few, or degenerate)")
+    return np.vstack([sim.matrix(), [0.0, 0.0, 0.0, 1.0]])
 
 
 def rotation_mean(rotations: np.ndarray) -> np.ndarray:
     """Chordal L2 mean of (N, 3, 3) rotations: the rotation nearest their arithmetic mean."""
-    U, _, Vt = np.linalg.svd(rotations.mean(axis=0))
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    return U @ D @ Vt
+    return rotation_weighted_mean(rotations, np.ones(len(rotations)))
 
 
 def short_baseline_scale(
@@ -298,7 +296,7 @@ def _robust_sim3(src: np.ndarray, dst: np.ndarray, inlier_m: float, seed: int) -
     M[:3, :4] = found["tgt_from_src"].matrix()
     residual = np.linalg.norm(src @ M[:3, :3].T + M[:3, 3] - dst, axis=1)
     inliers = residual < inlier_m
-    return umeyama(src[inliers], dst[inliers]) if inliers.sum() >= 3 else M
+    return fit_similarity(src[inliers], dst[inliers]) if inliers.sum() >= 3 else M
 
 
 # ----------------------------------------------------------------------------- the stage
@@ -328,18 +326,43 @@ def rootsift_uint8(descriptors: np.ndarray) -> np.ndarray:
     return np.clip(np.round(512.0 * d), 0, 255).astype(np.uint8)
 
 
+def opencv_sift_features(gray: np.ndarray, cfg: SfmConfig) -> tuple[np.ndarray, np.ndarray]:
+    """OpenCV SIFT on a grayscale image, as COLMAP stores features.
+
+    The image is downscaled to ``cfg.max_image_size_px`` on its long side first. Returns
+    keypoints (N, 4) float32 ``x, y, scale, orientation`` in full-image pixels with COLMAP's
+    convention (first pixel centre at 0.5), and RootSIFT descriptors (N, 128) uint8.
+    """
+    import cv2
+
+    factor = min(1.0, cfg.max_image_size_px / max(gray.shape))
+    if factor < 1.0:
+        gray = cv2.resize(gray, None, fx=factor, fy=factor, interpolation=cv2.INTER_AREA)
+    # enable_precise_upscale: without it OpenCV's internal 2x upsampling shifts every
+    # keypoint by about +0.24 px in x and y (measured on blobs of known centre).
+    sift = cv2.SIFT_create(
+        nfeatures=cfg.max_num_features, contrastThreshold=cfg.opencv_contrast_threshold,
+        enable_precise_upscale=True,
+    )
+    kps, desc = sift.detectAndCompute(gray, None)
+    # With pixel centres at 0.5 (COLMAP), resizing is a pure scale of the coordinates.
+    xy = np.array(
+        [[(k.pt[0] + PIXEL_CENTRE_OFFSET) / factor, (k.pt[1] + PIXEL_CENTRE_OFFSET) / factor,
+          k.size / 2 / factor, np.radians(k.angle)] for k in kps], np.float32
+    ).reshape(-1, 4)
+    desc8 = rootsift_uint8(desc) if desc is not None else np.zeros((0, 128), np.uint8)
+    return xy, desc8
+
+
 def _replace_with_opencv_sift(db: Path, image_root: Path, cfg: SfmConfig) -> None:
     """Overwrite the keypoints and descriptors of every image in ``db`` with OpenCV SIFT.
 
     Written because pycolmap's CPU SIFT takes 0.28 s per 480x640 frame here and OpenCV's
-    0.09 s; COLMAP reads keypoints as (x, y, scale, orientation) with pixel centres at 0.5.
+    0.09 s.
     """
     import cv2
     import pycolmap
 
-    sift = cv2.SIFT_create(
-        nfeatures=cfg.max_num_features, contrastThreshold=cfg.opencv_contrast_threshold
-    )
     with pycolmap.Database.open(db) as database:
         images = database.read_all_images()
         database.clear_keypoints()
@@ -348,12 +371,7 @@ def _replace_with_opencv_sift(db: Path, image_root: Path, cfg: SfmConfig) -> Non
             gray = cv2.imread(str(Path(image_root) / image.name), cv2.IMREAD_GRAYSCALE)
             if gray is None:
                 raise SfmError(f"{Path(image_root) / image.name}: cannot be read as an image")
-            kps, desc = sift.detectAndCompute(gray, None)
-            xy = np.array(
-                [[k.pt[0] + PIXEL_CENTRE_OFFSET, k.pt[1] + PIXEL_CENTRE_OFFSET, k.size / 2,
-                  np.radians(k.angle)] for k in kps], np.float32
-            ).reshape(-1, 4)
-            desc8 = rootsift_uint8(desc) if desc is not None else np.zeros((0, 128), np.uint8)
+            xy, desc8 = opencv_sift_features(gray, cfg)
             database.write_keypoints(image.image_id, xy)
             database.write_descriptors(
                 image.image_id,
@@ -611,7 +629,7 @@ def evaluate_sfm(result: SfmResult, exact: Capture, reported: Capture) -> dict[s
     exact_R = [exact.frames[i].T_world_from_cam[:3, :3] for i in np.flatnonzero(reg)]
     ar_R = [reported.frames[i].T_world_from_cam[:3, :3] for i in np.flatnonzero(reg)]
     ref_R = result.T_world_from_cam[reg, :3, :3]
-    fit = umeyama(refined_c, exact_c)
+    fit = fit_similarity(refined_c, exact_c)
     s_fit = float(np.cbrt(np.linalg.det(fit[:3, :3])))
     s_true = result.scale * s_fit
     rot_ref = [rotation_angle_deg(a, b) for a, b in zip(ref_R, exact_R, strict=True)]
