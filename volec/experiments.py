@@ -57,15 +57,18 @@ def ensure_capture(root: Path, item: str, scenario: Scenario) -> Path:
 def sfm_experiment(
     root: Path, items: list[str], scenario_list: list[Scenario], cfg: SfmConfig | None = None
 ) -> pd.DataFrame:
-    """SfM errors and wall time per (item, scenario), cached per run and config."""
+    """SfM errors and wall time per (item, scenario), cached per run and config.
 
+    The cache is keyed by the config, not by volec's code: after changing the SfM code,
+    delete ``ROOT/*/work`` to measure it again.
+    """
     cfg = cfg or SfmConfig()
+    key = json.loads(json.dumps(asdict(cfg)))
     rows = []
     for scenario in scenario_list:
         for item in items:
             out = ensure_capture(root, item, scenario)
             cache = out / "work" / "sfm_eval.json"
-            key = json.loads(json.dumps(asdict(cfg)))
             if cache.exists():
                 cached = json.loads(cache.read_text())
                 if cached.pop("sfm_config", None) == key:
