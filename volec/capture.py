@@ -73,6 +73,28 @@ class Intrinsics:
         """True when every distortion coefficient is zero."""
         return not any(self.distortion)
 
+    def project(self, points_cam: np.ndarray) -> np.ndarray:
+        """Pixel coordinates (N, 2) of camera-frame points (N, 3), distortion applied; NaN for
+        points at or behind the camera."""
+        pts = np.asarray(points_cam, float).reshape(-1, 3)
+        z = pts[:, 2]
+        front = z > 1e-9
+        uv = np.full((len(pts), 2), np.nan)
+        if self.is_undistorted:
+            uv[front] = pts[front, :2] / z[front, None] * [self.fx, self.fy] + [self.cx, self.cy]
+            return uv
+        import cv2
+
+        dist = np.asarray(self.distortion, float)
+        obj = pts[front].reshape(-1, 1, 3)
+        zero = np.zeros(3)
+        if self.model == "OPENCV_FISHEYE":
+            img, _ = cv2.fisheye.projectPoints(obj, zero, zero, self.K, dist)
+        else:
+            img, _ = cv2.projectPoints(obj, zero, zero, self.K, dist)
+        uv[front] = img.reshape(-1, 2)
+        return uv
+
     def scaled(self, factor: float) -> Intrinsics:
         """Intrinsics for the image resized by ``factor`` (e.g. 0.5 halves each side)."""
         return replace(
@@ -135,6 +157,24 @@ class Capture:
     def has_masks(self) -> bool:
         """True when every frame has a mask."""
         return bool(self.frames) and all(f.mask_path is not None for f in self.frames)
+
+
+def read_mask(frame: Frame) -> np.ndarray:
+    """The frame's food mask as a bool array at its image's size (grey > 127 = food)."""
+    if frame.mask_path is None:
+        raise CaptureError(f"frame {frame.name} has no mask")
+    try:
+        with Image.open(frame.mask_path) as im:
+            mask = np.asarray(im.convert("L")) > 127
+    except OSError as e:
+        raise CaptureError(f"cannot read the mask {frame.mask_path}: {e}") from e
+    h, w = frame.intrinsics.height, frame.intrinsics.width
+    if mask.shape != (h, w):
+        raise CaptureError(
+            f"mask {frame.mask_path} is {mask.shape[1]}x{mask.shape[0]} pixels but its image "
+            f"is {w}x{h}; masks must match their images"
+        )
+    return mask
 
 
 MissingPolicy = Literal["error", "skip"]

@@ -1,0 +1,629 @@
+"""Dense reconstruction on the CPU: plane-sweep stereo depth maps fused into one cloud.
+
+In: a :class:`~volec.capture.Capture` (images, intrinsics, optional food masks), the
+refined metric poses and sparse points of :class:`~volec.sfm.SfmResult`, and a
+:class:`DenseConfig`. Out: a :class:`DenseResult` whose ``cloud`` is the fused scene cloud
+(metres, the capture's world frame, with colours and normals) and a summary (counts,
+timings). :func:`run_dense` is the pure core; :func:`save_dense` / :func:`load_dense` write
+and read ``WORKDIR/scene.ply`` and ``WORKDIR/dense.json``.
+
+Why volec has its own stereo: the paper densifies with OpenMVS on CUDA and pycolmap's wheel
+has no CPU PatchMatch, so each view's depth is found here by a plane sweep written in torch
+(the same code runs on a GPU when one is present):
+
+1. every registered frame is a reference view, at most ``max_image_size_px`` on its long
+   side; its work is restricted to the food mask's surroundings (the mask dilated by
+   ``roi_margin_px``) when the capture has masks, and the depth range comes from the sparse
+   SfM points seen there;
+2. a few source views with a good triangulation angle are warped onto fronto-parallel
+   planes, uniform in inverse depth; the cost is the zero-mean normalised cross-correlation
+   (NCC) over a small window, averaged over the best ``top_k_sources`` sources (so a source
+   in which the point is occluded does not veto it);
+3. the best plane is refined per pixel by two finer local sweeps and a parabola through the
+   last three costs (sub-plane depth);
+4. depths with a low NCC, or at the ends of the range, are dropped; the rest must agree with
+   the depth maps of ``geometric_min_views`` neighbour views (reprojection and relative
+   depth), and each kept point is the mean of its agreeing estimates;
+5. the points of all views, with normals from the depth maps' gradients and colours from
+   the images, are merged on a voxel grid of ``fusion_voxel_m``.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PIL import Image
+from scipy import ndimage
+
+from volec.capture import Capture, Frame, Intrinsics, read_mask
+from volec.errors import VolecError
+from volec.geometry import invert_rigid
+from volec.io import write_json_atomic
+from volec.pointcloud import PointCloud, from_open3d, read_ply, to_open3d, write_ply
+
+log = logging.getLogger(__name__)
+
+
+class DenseError(VolecError):
+    """Dense reconstruction could not produce a trustworthy cloud for this capture."""
+
+
+@dataclass(frozen=True)
+class DenseConfig:
+    """Options of the dense stage; the defaults suit a 100-frame 480x640 phone orbit."""
+
+    max_image_size_px: int = 512
+    """Images are downscaled to at most this many pixels on the long side (paper: OpenMVS
+    ``max-resolution 512``)."""
+    roi: str = "mask"
+    """``mask``: estimate depth only around the food mask (dilated by ``roi_margin_px``), the
+    part of the scene the volume needs; ``full``: the whole image. Without masks in the
+    capture ``mask`` falls back to ``full``."""
+    roi_margin_px: int = 12
+    """Dilation of the food mask, in working-resolution pixels, that bounds the work."""
+    n_sources: int = 4
+    """Source views compared with each reference view."""
+    source_angle_deg: tuple[float, float, float] = (4.0, 14.0, 40.0)
+    """Triangulation angle at the object between reference and source camera: (smallest,
+    preferred, largest), degrees."""
+    top_k_sources: int = 2
+    """The cost of a depth is the mean NCC of the best this-many sources."""
+    ncc_window_px: int = 7
+    """Side of the square NCC window, pixels (odd)."""
+    n_depth_planes: int = 64
+    """Fronto-parallel planes of the first sweep, uniform in inverse depth."""
+    n_refine_hypotheses: int = 7
+    """Depths tried per pixel in each of the two refining sweeps."""
+    depth_range_margin: float = 0.08
+    """The sparse points' depth range (2nd to 98th percentile) is widened by this fraction."""
+    min_ncc: float = 0.45
+    """Depths whose aggregated NCC is below this are dropped."""
+    min_texture_std: float = 0.004
+    """Pixels whose window's intensity standard deviation (0..1 scale) is below this are
+    textureless: no depth is estimated there."""
+    geometric_max_reprojection_px: float = 1.0
+    """A neighbour agrees when its depth re-projects to within this many pixels..."""
+    geometric_max_relative_depth: float = 0.005
+    """... and within this fraction of the depth."""
+    geometric_min_views: int = 2
+    """Neighbour depth maps that must agree for a depth to be kept."""
+    fusion_voxel_m: float = 0.0005
+    """Voxel size of the final merge, metres (0 keeps every point)."""
+    planes_per_chunk: int = 16
+    """Planes evaluated at once (bounds memory: about 20 floats per pixel and plane)."""
+    device: str = "auto"
+    """torch device: ``auto`` (CUDA when present, else CPU), ``cpu`` or ``cuda``."""
+
+
+PRESETS: dict[str, DenseConfig] = {
+    "default": DenseConfig(),
+    # Fewer planes and sources: about two thirds of the time.
+    "fast": DenseConfig(n_depth_planes=48, n_sources=3),
+    "full_image": DenseConfig(roi="full"),
+}
+
+
+@dataclass(frozen=True, eq=False)
+class View:
+    """A frame at working resolution, ready for stereo."""
+
+    index: int
+    """Index of the frame in the capture."""
+    K: np.ndarray
+    """3x3 calibration at working resolution (OpenCV pixel centres)."""
+    T_cam_from_world: np.ndarray
+    """4x4 world-to-camera transform (refined pose), metres."""
+    gray: np.ndarray
+    """(H, W) float32 intensity in 0..1."""
+    rgb: np.ndarray
+    """(H, W, 3) uint8 colour."""
+    roi: np.ndarray
+    """(H, W) bool: where depth is estimated."""
+
+    @property
+    def centre(self) -> np.ndarray:
+        """Camera centre, world, metres."""
+        return invert_rigid(self.T_cam_from_world)[:3, 3]
+
+
+@dataclass(eq=False)
+class DepthMap:
+    """One view's estimated depth."""
+
+    depth_m: np.ndarray
+    """(H, W) float32 depth along the optical axis, metres; 0 where there is none."""
+    ncc: np.ndarray
+    """(H, W) float32 aggregated NCC of the chosen depth (-1 where there is none)."""
+    sources: list[int]
+    """Positions (in the view list) of the source views used."""
+
+
+@dataclass(eq=False)
+class DenseResult:
+    """The fused scene cloud and how it was made."""
+
+    cloud: PointCloud
+    """Scene cloud, metres, world frame, with colours and normals."""
+    summary: dict[str, Any] = field(default_factory=dict)
+    """Counts per step, depth ranges, timings (JSON-able)."""
+
+
+# ----------------------------------------------------------------------------- views
+
+
+def _undistort(image: np.ndarray, intr: Intrinsics, nearest: bool) -> np.ndarray:
+    """``image`` resampled to the pinhole camera ``intr.K`` (no-op without distortion)."""
+    if intr.is_undistorted:
+        return image
+    import cv2
+
+    K, dist = intr.K, np.asarray(intr.distortion, float)
+    size = (intr.width, intr.height)
+    if intr.model == "OPENCV_FISHEYE":
+        maps = cv2.fisheye.initUndistortRectifyMap(K, dist, np.eye(3), K, size, cv2.CV_32FC1)
+    else:
+        maps = cv2.initUndistortRectifyMap(K, dist, np.eye(3), K, size, cv2.CV_32FC1)
+    interp = cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR
+    return cv2.remap(image, maps[0], maps[1], interp)
+
+
+def working_size(intr: Intrinsics, max_image_size_px: int) -> tuple[int, int, float]:
+    """(width, height, factor) of the working resolution: the long side at most
+    ``max_image_size_px``, never enlarged."""
+    factor = min(1.0, max_image_size_px / max(intr.width, intr.height))
+    return int(round(intr.width * factor)), int(round(intr.height * factor)), factor
+
+
+def prepare_view(index: int, frame: Frame, T_world_from_cam: np.ndarray,
+                 cfg: DenseConfig, use_mask: bool) -> View:
+    """Load, undistort and downscale one frame; its ROI from its mask (or the whole image)."""
+    intr = frame.intrinsics
+    with Image.open(frame.image_path) as im:
+        rgb = np.asarray(im.convert("RGB"))
+    rgb = _undistort(rgb, intr, nearest=False)
+    w, h, factor = working_size(intr, cfg.max_image_size_px)
+    if factor < 1.0:
+        rgb = np.asarray(Image.fromarray(rgb).resize((w, h), Image.Resampling.BOX))
+    if use_mask:
+        mask = _undistort(read_mask(frame).astype(np.uint8), intr, nearest=True)
+        mask = np.asarray(Image.fromarray(mask * 255).resize((w, h), Image.Resampling.BOX)) > 0
+        roi = ndimage.binary_dilation(mask, iterations=cfg.roi_margin_px) if mask.any() else mask
+    else:
+        roi = np.ones((h, w), bool)
+    gray = (rgb.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)) / 255.0
+    return View(index, intr.scaled(factor).K if factor < 1.0 else intr.K,
+                invert_rigid(T_world_from_cam), gray, rgb, roi)
+
+
+# ----------------------------------------------------------------------------- geometry
+
+
+def project(K: np.ndarray, T_cam_from_world: np.ndarray, xyz: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel coordinates (N, 2) and depths (N,) of world points in a camera."""
+    cam = xyz @ T_cam_from_world[:3, :3].T + T_cam_from_world[:3, 3]
+    z = cam[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        uv = (cam[:, :2] / z[:, None]) * np.diag(K)[:2] + K[:2, 2]
+    return uv, z
+
+
+def backproject(K: np.ndarray, T_cam_from_world: np.ndarray, uv: np.ndarray,
+                depth: np.ndarray) -> np.ndarray:
+    """World points (N, 3) of pixels ``uv`` (N, 2) at ``depth`` (N,) metres."""
+    x = (uv[:, 0] - K[0, 2]) / K[0, 0]
+    y = (uv[:, 1] - K[1, 2]) / K[1, 1]
+    cam = np.stack([x * depth, y * depth, depth], axis=1)
+    T = invert_rigid(T_cam_from_world)
+    return cam @ T[:3, :3].T + T[:3, 3]
+
+
+def depth_range(view: View, sparse_xyz: np.ndarray, margin: float) -> tuple[float, float] | None:
+    """(near, far) metres from the sparse points seen inside the view's ROI, widened by
+    ``margin``; None when fewer than 10 points fall there."""
+    uv, z = project(view.K, view.T_cam_from_world, sparse_xyz)
+    h, w = view.roi.shape
+    ok = (z > 0) & np.all(np.isfinite(uv), axis=1)
+    iu = np.round(uv[ok]).astype(int)
+    inside = (iu[:, 0] >= 0) & (iu[:, 0] < w) & (iu[:, 1] >= 0) & (iu[:, 1] < h)
+    zin = z[ok][inside]
+    zin = zin[view.roi[iu[inside, 1], iu[inside, 0]]]
+    if len(zin) < 10:
+        return None
+    near, far = np.percentile(zin, [2.0, 98.0])
+    return float(near * (1 - margin)), float(far * (1 + margin))
+
+
+def select_sources(centres: np.ndarray, targets: np.ndarray, ref: int, candidates: np.ndarray,
+                   n: int, angles_deg: tuple[float, float, float]) -> list[int]:
+    """Up to ``n`` positions from ``candidates`` whose triangulation angle with ``ref`` at
+    its target point lies in the allowed range, closest to the preferred angle first."""
+    lo, best, hi = angles_deg
+    target = targets[ref]
+    a = centres[ref] - target
+    b = centres[candidates] - target
+    cos = (b @ a) / (np.linalg.norm(b, axis=1) * np.linalg.norm(a) + 1e-12)
+    angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    ok = (angle >= lo) & (angle <= hi) & (candidates != ref)
+    order = np.argsort(np.abs(angle[ok] - best), kind="stable")
+    return [int(c) for c in candidates[ok][order][:n]]
+
+
+# ----------------------------------------------------------------------------- the sweep
+
+
+def _torch_device(name: str):
+    import torch
+
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(name)
+
+
+def _box_mean(x, k: int):
+    """Mean over a k x k window (same size, edges replicated) of a (..., H, W) tensor.
+
+    On the CPU this is OpenCV's box filter, plane by plane: torch's ``avg_pool2d`` measured
+    10-20 times slower there and was most of the sweep's time. On a GPU, torch's pooling.
+    """
+    import torch
+
+    shape = x.shape
+    planes = x.reshape(-1, shape[-2], shape[-1])
+    if x.device.type == "cpu":
+        import cv2
+
+        arr = planes.contiguous().numpy()
+        out = np.empty_like(arr)
+        for i in range(len(arr)):
+            cv2.blur(arr[i], (k, k), dst=out[i], borderType=cv2.BORDER_REPLICATE)
+        return torch.from_numpy(out).reshape(shape)
+    import torch.nn.functional as F
+
+    p = k // 2
+    y = F.pad(planes[:, None], (p, p, p, p), mode="replicate")
+    return F.avg_pool2d(y, k, stride=1).reshape(shape)
+
+
+class _Reference:
+    """A reference view's crop as torch tensors, with its window statistics."""
+
+    def __init__(self, view: View, cfg: DenseConfig, device) -> None:
+        import torch
+
+        ys, xs = np.nonzero(view.roi)
+        self.y0, self.y1 = int(ys.min()), int(ys.max()) + 1
+        self.x0, self.x1 = int(xs.min()), int(xs.max()) + 1
+        h, w = self.y1 - self.y0, self.x1 - self.x0
+        self.shape = (h, w)
+        k = cfg.ncc_window_px
+        ref = torch.from_numpy(view.gray[self.y0:self.y1, self.x0:self.x1].copy()).to(device)
+        self.image = ref
+        self.mean = _box_mean(ref, k)
+        self.std = (_box_mean(ref * ref, k) - self.mean**2).clamp_min(0).sqrt()
+        u, v = np.meshgrid(np.arange(self.x0, self.x1), np.arange(self.y0, self.y1))
+        pix = np.stack([u.ravel(), v.ravel(), np.ones(u.size)])  # (3, P)
+        self.rays = np.linalg.inv(view.K) @ pix  # camera-frame rays with z = 1
+
+
+def _source_terms(ref_view: View, ref: _Reference, src: View, device):
+    """Per pixel, the source's grid_sample coordinates are (x/z, y/z) of
+    ``A + inv_depth * b``; A (P, 3) and b (3,) fold in the map from pixels to [-1, 1]."""
+    import torch
+
+    H, W = src.gray.shape
+    to_grid = np.array([[2.0 / (W - 1), 0.0, -1.0], [0.0, 2.0 / (H - 1), -1.0], [0, 0, 1.0]])
+    T = src.T_cam_from_world @ invert_rigid(ref_view.T_cam_from_world)
+    A = (to_grid @ src.K @ T[:3, :3] @ ref.rays).T
+    b = to_grid @ src.K @ T[:3, 3]
+    image = torch.from_numpy(src.gray).to(device)[None, None]
+    return (torch.from_numpy(np.ascontiguousarray(A)).float().to(device),
+            torch.from_numpy(b).float().to(device), image)
+
+
+def _ncc(ref: _Reference, term, inv_depth, cfg: DenseConfig):
+    """NCC (D, h, w) between the reference and one source warped at per-pixel inverse depths
+    ``inv_depth`` (D, P); -1 where the source does not see the pixel."""
+    import torch
+    import torch.nn.functional as F
+
+    A, b, image = term
+    h, w = ref.shape
+    hom = torch.addcmul(A[None], inv_depth[..., None], b)  # (D, P, 3)
+    z = hom[..., 2:3]
+    grid = hom[..., :2] / z.clamp_min(1e-9)
+    valid = (z[..., 0] > 1e-9) & (grid.abs() <= 1.0).all(dim=-1)
+    warped = F.grid_sample(image, grid[None], mode="bilinear", padding_mode="border",
+                           align_corners=True)[0, 0].reshape(-1, h, w)
+    k = cfg.ncc_window_px
+    mean_s = _box_mean(warped, k)
+    var_s = (_box_mean(warped * warped, k) - mean_s * mean_s).clamp_min_(0)
+    cov = _box_mean(warped * ref.image, k) - mean_s * ref.mean
+    ncc = cov / (ref.std * var_s.sqrt_() + 1e-6)
+    return ncc.masked_fill_(~valid.reshape(-1, h, w), -1.0)
+
+
+def _aggregate(ref: _Reference, terms, inv_depth, cfg: DenseConfig):
+    """Mean of the best ``top_k_sources`` NCCs, (D, h, w), evaluated in plane chunks."""
+    import torch
+
+    out = []
+    for start in range(0, inv_depth.shape[0], cfg.planes_per_chunk):
+        chunk = inv_depth[start:start + cfg.planes_per_chunk]
+        per_source = torch.stack([_ncc(ref, t, chunk, cfg) for t in terms])
+        k = min(cfg.top_k_sources, len(terms))
+        out.append(per_source.topk(k, dim=0).values.mean(dim=0))
+    return torch.cat(out)
+
+
+def estimate_depth(views: list[View], ref_pos: int, sources: list[int],
+                   near_far: tuple[float, float], cfg: DenseConfig) -> DepthMap:
+    """Plane-sweep depth of ``views[ref_pos]`` against ``views[s]`` for ``s`` in ``sources``."""
+    import torch
+
+    device = _torch_device(cfg.device)
+    view = views[ref_pos]
+    H, W = view.gray.shape
+    depth = np.zeros((H, W), np.float32)
+    score = np.full((H, W), -1.0, np.float32)
+    if not sources or not view.roi.any():
+        return DepthMap(depth, score, sources)
+    with torch.no_grad():
+        ref = _Reference(view, cfg, device)
+        h, w = ref.shape
+        P = h * w
+        terms = [_source_terms(view, ref, views[s], device) for s in sources]
+        near, far = near_far
+        inv_far, inv_near = 1.0 / far, 1.0 / near
+        planes = torch.linspace(inv_far, inv_near, cfg.n_depth_planes, device=device)
+        cost = _aggregate(ref, terms, planes[:, None].expand(-1, P), cfg)  # (D, h, w)
+        best_cost, best = cost.max(dim=0)
+        at_end = (best == 0) | (best == cfg.n_depth_planes - 1)
+        inv = planes[best].reshape(-1)
+        step = float(planes[1] - planes[0])
+        # Two local sweeps around the best depth, each with a finer step.
+        n = cfg.n_refine_hypotheses
+        offsets = torch.linspace(-1.0, 1.0, n, device=device)
+        for _ in range(2):
+            hyp = inv[None] + offsets[:, None] * step  # (n, P)
+            cost = _aggregate(ref, terms, hyp, cfg).reshape(n, P)
+            best_cost, j = cost.max(dim=0)
+            inv = hyp.gather(0, j[None])[0]
+            spacing = step * 2.0 / (n - 1)
+            step = spacing
+        # Sub-hypothesis depth: a parabola through the best cost and its two neighbours.
+        jc = j.clamp(1, n - 2)
+        c_minus = cost.gather(0, (jc - 1)[None])[0]
+        c_zero = cost.gather(0, jc[None])[0]
+        c_plus = cost.gather(0, (jc + 1)[None])[0]
+        curvature = c_minus - 2 * c_zero + c_plus
+        shift = torch.where(curvature < -1e-6, 0.5 * (c_minus - c_plus) / curvature,
+                            torch.zeros_like(curvature)).clamp(-0.5, 0.5)
+        interior = (j > 0) & (j < n - 1)
+        inv = torch.where(interior, inv + shift * spacing, inv)
+        keep = ((best_cost.reshape(-1) >= cfg.min_ncc) & ~at_end.reshape(-1)
+                & (ref.std.reshape(-1) >= cfg.min_texture_std) & (inv > 0))
+        d = torch.where(keep, 1.0 / inv.clamp_min(1e-9), torch.zeros_like(inv))
+        crop_depth = d.reshape(h, w).cpu().numpy()
+        crop_score = torch.where(keep, best_cost.reshape(-1), torch.full_like(inv, -1.0))
+        crop_score = crop_score.reshape(h, w).cpu().numpy()
+    roi = view.roi[ref.y0:ref.y1, ref.x0:ref.x1]
+    depth[ref.y0:ref.y1, ref.x0:ref.x1] = np.where(roi, crop_depth, 0.0)
+    score[ref.y0:ref.y1, ref.x0:ref.x1] = np.where(roi, crop_score, -1.0)
+    return DepthMap(depth, score, sources)
+
+
+# ----------------------------------------------------------------------------- fusion
+
+
+def depth_normals(view: View, depth_m: np.ndarray) -> np.ndarray:
+    """(H, W, 3) unit normals in world coordinates from a depth map's central differences,
+    facing the camera; zero where a neighbour has no depth."""
+    H, W = depth_m.shape
+    u, v = np.meshgrid(np.arange(W), np.arange(H))
+    K = view.K
+    cam = np.stack([(u - K[0, 2]) / K[0, 0] * depth_m, (v - K[1, 2]) / K[1, 1] * depth_m,
+                    depth_m], axis=-1)
+    dx = np.zeros_like(cam)
+    dy = np.zeros_like(cam)
+    dx[:, 1:-1] = cam[:, 2:] - cam[:, :-2]
+    dy[1:-1] = cam[2:] - cam[:-2]
+    n = np.cross(dy, dx)
+    valid = depth_m > 0
+    ok = np.zeros_like(valid)
+    ok[1:-1, 1:-1] = (valid[1:-1, 1:-1] & valid[1:-1, 2:] & valid[1:-1, :-2]
+                      & valid[2:, 1:-1] & valid[:-2, 1:-1])
+    norm = np.linalg.norm(n, axis=-1, keepdims=True)
+    n = np.where(ok[..., None] & (norm > 0), n / np.maximum(norm, 1e-12), 0.0)
+    flip = np.sum(n * cam, axis=-1) > 0  # must face the camera (point towards -ray)
+    n[flip] *= -1
+    R_world_from_cam = view.T_cam_from_world[:3, :3].T
+    return n @ R_world_from_cam.T
+
+
+def _sample_depth(depth_m: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Nearest-pixel depth at ``uv`` (0 outside the image)."""
+    H, W = depth_m.shape
+    iu = np.round(uv).astype(int, copy=False) if np.all(np.isfinite(uv)) else np.full(
+        uv.shape, -1)
+    inside = (iu[:, 0] >= 0) & (iu[:, 0] < W) & (iu[:, 1] >= 0) & (iu[:, 1] < H)
+    out = np.zeros(len(uv), np.float32)
+    out[inside] = depth_m[iu[inside, 1], iu[inside, 0]]
+    return out
+
+
+def consistent_points(views: list[View], maps: list[DepthMap], ref_pos: int,
+                      neighbours: list[int], cfg: DenseConfig
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The reference's depths that ``geometric_min_views`` neighbour depth maps agree with.
+
+    Returns (pixel indices (N, 2) as (row, col), fused world points (N, 3) -- the mean of
+    the reference's point and its agreeing neighbours' --, agreeing-view counts (N,)).
+    """
+    view, dm = views[ref_pos], maps[ref_pos]
+    rows, cols = np.nonzero(dm.depth_m > 0)
+    uv = np.stack([cols, rows], axis=1).astype(float)
+    d = dm.depth_m[rows, cols].astype(float)
+    X = backproject(view.K, view.T_cam_from_world, uv, d)
+    total = X.copy()
+    count = np.zeros(len(X), int)
+    for nb in neighbours:
+        other = views[nb]
+        uv_n, _ = project(other.K, other.T_cam_from_world, X)
+        uv_n = np.where(np.isfinite(uv_n), uv_n, -1.0)
+        d_n = _sample_depth(maps[nb].depth_m, uv_n).astype(float)
+        has = d_n > 0
+        X_n = backproject(other.K, other.T_cam_from_world, np.round(uv_n), d_n)
+        uv_back, d_back = project(view.K, view.T_cam_from_world, X_n)
+        reproj = np.linalg.norm(uv_back - uv, axis=1)
+        agree = (has & (reproj <= cfg.geometric_max_reprojection_px)
+                 & (np.abs(d_back - d) <= cfg.geometric_max_relative_depth * d))
+        total[agree] += X_n[agree]
+        count += agree
+    keep = count >= cfg.geometric_min_views
+    fused = total[keep] / (count[keep] + 1)[:, None]
+    return np.stack([rows[keep], cols[keep]], axis=1), fused, count[keep]
+
+
+def voxel_merge(cloud: PointCloud, voxel_m: float) -> PointCloud:
+    """Points averaged per voxel (colours and normals too; normals renormalised)."""
+    if voxel_m <= 0 or len(cloud) == 0:
+        return cloud
+    merged = from_open3d(to_open3d(cloud).voxel_down_sample(voxel_m))
+    if merged.normals is not None:
+        norm = np.linalg.norm(merged.normals, axis=1, keepdims=True)
+        merged = PointCloud(merged.xyz, merged.rgb, merged.normals / np.maximum(norm, 1e-12))
+    return merged
+
+
+# ----------------------------------------------------------------------------- the stage
+
+
+def _object_targets(views: list[View], sparse_xyz: np.ndarray) -> np.ndarray:
+    """Per view, the median sparse point inside its ROI (the point the triangulation angle is
+    measured at); the view's centre plus 0.3 m along its axis when no point falls there."""
+    targets = []
+    for v in views:
+        uv, z = project(v.K, v.T_cam_from_world, sparse_xyz)
+        h, w = v.roi.shape
+        ok = (z > 0) & np.all(np.isfinite(uv), axis=1)
+        iu = np.round(uv[ok]).astype(int)
+        inside = (iu[:, 0] >= 0) & (iu[:, 0] < w) & (iu[:, 1] >= 0) & (iu[:, 1] < h)
+        pts = sparse_xyz[ok][inside][v.roi[iu[inside, 1], iu[inside, 0]]]
+        if len(pts):
+            targets.append(np.median(pts, axis=0))
+        else:
+            axis = invert_rigid(v.T_cam_from_world)[:3, 2]
+            targets.append(v.centre + 0.3 * axis)
+    return np.asarray(targets)
+
+
+def run_dense(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarray,
+              sparse_xyz: np.ndarray, cfg: DenseConfig | None = None,
+              progress: bool = True) -> DenseResult:
+    """Depth maps of every registered frame, filtered and fused into the scene cloud.
+
+    ``T_world_from_cam`` (N, 4, 4) and ``registered`` (N,) are per capture frame (the SfM
+    stage's refined poses); ``sparse_xyz`` (M, 3) are the SfM points, which bound the depths.
+    """
+    from tqdm.auto import tqdm
+
+    cfg = cfg or DenseConfig()
+    if cfg.ncc_window_px % 2 == 0 or cfg.ncc_window_px < 3:
+        raise ValueError("ncc_window_px must be odd and at least 3")
+    if len(T_world_from_cam) != len(capture) or len(registered) != len(capture):
+        raise ValueError("one pose and one registered flag per capture frame are needed")
+    timings: dict[str, float] = {}
+    t = time.perf_counter()
+    use_mask = cfg.roi == "mask" and capture.has_masks
+    if cfg.roi == "mask" and not capture.has_masks:
+        log.warning("the capture has no masks: dense stereo runs on the whole image (slower)")
+    indices = np.flatnonzero(registered)
+    if len(indices) < 3:
+        raise DenseError(f"only {len(indices)} frames registered; dense stereo needs 3 or more")
+    views = [prepare_view(int(i), capture.frames[i], T_world_from_cam[i], cfg, use_mask)
+             for i in tqdm(indices, desc="dense: loading frames", disable=not progress)]
+    timings["load_s"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    centres = np.stack([v.centre for v in views])
+    targets = _object_targets(views, sparse_xyz)
+    positions = np.arange(len(views))
+    sources = [select_sources(centres, targets, r, positions, cfg.n_sources,
+                              cfg.source_angle_deg) for r in positions]
+    maps: list[DepthMap] = []
+    ranges = []
+    for r in tqdm(positions, desc="dense: depth maps", disable=not progress):
+        near_far = depth_range(views[r], sparse_xyz, cfg.depth_range_margin)
+        ranges.append(near_far)
+        if near_far is None:
+            log.warning("frame %s: too few sparse points in view; no depth map",
+                        capture.frames[views[r].index].name)
+            maps.append(DepthMap(np.zeros_like(views[r].gray), np.full_like(views[r].gray, -1),
+                                 []))
+            continue
+        maps.append(estimate_depth(views, int(r), sources[r], near_far, cfg))
+    timings["depth_s"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    xyz, rgb, normals = [], [], []
+    n_estimated = 0
+    for r in positions:
+        n_estimated += int((maps[r].depth_m > 0).sum())
+        pix, X, _ = consistent_points(views, maps, int(r), sources[r], cfg)
+        if not len(X):
+            continue
+        xyz.append(X)
+        rgb.append(views[r].rgb[pix[:, 0], pix[:, 1]])
+        normals.append(depth_normals(views[r], maps[r].depth_m)[pix[:, 0], pix[:, 1]])
+    if not xyz:
+        raise DenseError(
+            "no depth survived the multi-view consistency check: the frames may be blurred, "
+            "the food textureless, or the poses wrong (check the SfM summary)"
+        )
+    fused = PointCloud(np.concatenate(xyz), np.concatenate(rgb), np.concatenate(normals))
+    has_normal = np.linalg.norm(fused.normals, axis=1) > 0.5
+    fused = fused.subset(has_normal)
+    n_consistent = len(fused)
+    cloud = voxel_merge(fused, cfg.fusion_voxel_m)
+    timings["fuse_s"] = time.perf_counter() - t
+    summary = {
+        "frames": len(capture),
+        "reference_views": len(views),
+        "depth_maps": int(sum(1 for m in maps if m.sources)),
+        "working_size_px": list(views[0].gray.shape[::-1]),
+        "roi": "mask" if use_mask else "full",
+        "roi_pixels_median": int(np.median([v.roi.sum() for v in views])),
+        "depths_estimated": n_estimated,
+        "depths_consistent": n_consistent,
+        "points": len(cloud),
+        "depth_range_median_m": [float(np.median([r[i] for r in ranges if r]))
+                                 for i in (0, 1)] if any(ranges) else None,
+        "timings_s": {k: round(v, 3) for k, v in timings.items()},
+        "config": asdict(cfg),
+    }
+    log.info("dense: %d views, %d consistent depths, %d points after a %.1f mm merge",
+             len(views), n_consistent, len(cloud), cfg.fusion_voxel_m * 1000)
+    return DenseResult(cloud, summary)
+
+
+def save_dense(work_dir: Path, result: DenseResult) -> Path:
+    """Write ``WORKDIR/scene.ply`` and ``WORKDIR/dense.json`` (each atomically)."""
+    work_dir = Path(work_dir)
+    path = write_ply(result.cloud, work_dir / "scene.ply")
+    write_json_atomic(work_dir / "dense.json", result.summary)
+    return path
+
+
+def load_dense(work_dir: Path) -> DenseResult:
+    """Read a finished dense stage back from ``work_dir``."""
+    import json
+
+    work_dir = Path(work_dir)
+    return DenseResult(read_ply(work_dir / "scene.ply"),
+                       json.loads((work_dir / "dense.json").read_text()))

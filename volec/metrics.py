@@ -1,0 +1,107 @@
+"""Geometric scores of a reconstruction against a ground-truth surface.
+
+In: point clouds (metres), a closed ground-truth mesh (trimesh, same frame) and, for what a
+capture could see, the exact cameras of the capture. Out: distances and scores as floats and
+arrays: accuracy (cloud to surface), completeness (surface to cloud) split into the part the
+cameras saw and the part they could not (the bottom), and the Chamfer distance.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+from scipy.spatial import cKDTree
+
+from volec.capture import Capture
+
+
+def distances_to_surface(points: np.ndarray, mesh: trimesh.Trimesh) -> np.ndarray:
+    """Unsigned distance (N,) from each point to the mesh surface, metres (open3d's exact
+    point-triangle distance)."""
+    import open3d as o3d
+
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(
+        o3d.core.Tensor(np.asarray(mesh.vertices, np.float32)),
+        o3d.core.Tensor(np.asarray(mesh.faces, np.uint32)),
+    )
+    query = o3d.core.Tensor(np.asarray(points, np.float32).reshape(-1, 3))
+    return scene.compute_distance(query).numpy().astype(float)
+
+
+def sample_surface(mesh: trimesh.Trimesh, n: int, seed: int = 0) -> np.ndarray:
+    """``n`` points spread uniformly by area over the mesh surface (seeded)."""
+    points, _ = trimesh.sample.sample_surface(mesh, n, seed=seed)
+    return np.asarray(points, float)
+
+
+def views_seeing(points: np.ndarray, mesh: trimesh.Trimesh, capture: Capture,
+                 tolerance_m: float = 5e-4) -> np.ndarray:
+    """Per surface point (N,), how many of the capture's cameras see it: it projects into the
+    image and the ray from the camera meets the mesh no earlier than the point itself."""
+    from trimesh.ray.ray_pyembree import RayMeshIntersector
+
+    rays = RayMeshIntersector(mesh)
+    count = np.zeros(len(points), int)
+    for frame in capture.frames:
+        T = frame.T_cam_from_world
+        cam = points @ T[:3, :3].T + T[:3, 3]
+        uv = frame.intrinsics.project(cam)
+        w, h = frame.intrinsics.width, frame.intrinsics.height
+        ok = np.all(np.isfinite(uv), axis=1)
+        ok[ok] = ((uv[ok, 0] >= -0.5) & (uv[ok, 0] < w - 0.5)
+                  & (uv[ok, 1] >= -0.5) & (uv[ok, 1] < h - 0.5))
+        idx = np.flatnonzero(ok)
+        if not len(idx):
+            continue
+        origin = frame.camera_centre
+        offset = points[idx] - origin
+        dist = np.linalg.norm(offset, axis=1)
+        direction = offset / dist[:, None]
+        hits, ray_idx, _ = rays.intersects_location(
+            np.repeat(origin[None], len(idx), axis=0), direction, multiple_hits=False
+        )
+        first = np.full(len(idx), np.inf)
+        first[ray_idx] = np.linalg.norm(hits - origin, axis=1)
+        count[idx] += first >= dist - tolerance_m
+    return count
+
+
+def nearest_distances(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Distance (N,) from each source point to its nearest target point, metres."""
+    if len(target) == 0:
+        return np.full(len(source), np.inf)
+    return cKDTree(target).query(source, workers=-1)[0]
+
+
+def chamfer_distance(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """(Chamfer-L1, Chamfer-L2) between two point sets: the mean of the two directions' mean
+    nearest-neighbour distances, and the same with squared distances."""
+    ab, ba = nearest_distances(a, b), nearest_distances(b, a)
+    return float((ab.mean() + ba.mean()) / 2), float(((ab**2).mean() + (ba**2).mean()) / 2)
+
+
+def cloud_scores(cloud_xyz: np.ndarray, mesh: trimesh.Trimesh, exact: Capture,
+                 threshold_m: float = 0.002, n_samples: int = 30000, min_views: int = 2,
+                 seed: int = 0) -> dict[str, float]:
+    """Accuracy and completeness of a food cloud against the true food surface.
+
+    Accuracy: median and 95th percentile of the cloud's distances to the surface.
+    Completeness: the fraction of surface samples within ``threshold_m`` of the cloud, over
+    the samples at least ``min_views`` exact cameras see (``visible``) and over the rest
+    (``unseen``: what completion has to supply).
+    """
+    d_acc = distances_to_surface(cloud_xyz, mesh)
+    samples = sample_surface(mesh, n_samples, seed)
+    seen = views_seeing(samples, mesh, exact) >= min_views
+    d_comp = nearest_distances(samples, cloud_xyz)
+    close = d_comp <= threshold_m
+    return {
+        "points": float(len(cloud_xyz)),
+        "accuracy_median_m": float(np.median(d_acc)),
+        "accuracy_p95_m": float(np.percentile(d_acc, 95)),
+        "completeness_visible": float(close[seen].mean()) if seen.any() else float("nan"),
+        "completeness_unseen": float(close[~seen].mean()) if (~seen).any() else float("nan"),
+        "completeness_all": float(close.mean()),
+        "visible_surface_fraction": float(seen.mean()),
+    }
