@@ -20,7 +20,6 @@ from volec.sfm import (
     select_pairs,
     short_baseline_scale,
 )
-from volec.synth import PRESETS, write_synthetic_capture
 
 INTR = Intrinsics(64, 48, 50.0, 50.0, 31.5, 23.5)
 
@@ -145,20 +144,6 @@ def test_textureless_frames_are_an_error(tmp_path):
     with pytest.raises(SfmError, match="textureless"):
         run_sfm(cap, tmp_path / "work")
     assert not (tmp_path / "work" / "sfm").exists()  # nothing half-written is left
-
-
-@pytest.fixture(scope="module")
-def small_capture(tmp_path_factory) -> Path:
-    """16 full-size frames over a 100-degree arc: enough for SfM, fast to render."""
-    cfg = PRESETS["default"].with_(n_frames=16, arc_deg=100.0)
-    return write_synthetic_capture("chocolate_cake", tmp_path_factory.mktemp("sfm") / "cake",
-                                   cfg, progress=False)
-
-
-@pytest.fixture(scope="module")
-def small_result(small_capture):
-    cap = read_transforms_json(small_capture / "capture")
-    return run_sfm(cap, small_capture / "work"), cap
 
 
 def test_colmap_sift_backend_also_recovers_the_poses(small_capture, tmp_path):

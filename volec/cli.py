@@ -59,17 +59,14 @@ def _cmd_synth(args: argparse.Namespace) -> int:
 
 def _cmd_sfm(args: argparse.Namespace) -> int:
     from volec.capture import read_capture
-    from volec.sfm import PRESETS, load_sfm, run_sfm
+    from volec.pipeline import ensure_sfm
+    from volec.sfm import PRESETS
 
     work = Path(args.out)
-    if (work / "sfm" / "summary.json").exists() and not args.overwrite:
-        result = load_sfm(work)
+    capture = read_capture(Path(args.capture), on_missing="skip" if args.skip_missing else "error")
+    result, computed = ensure_sfm(capture, work, PRESETS[args.preset], args.overwrite)
+    if not computed:
         print(f"{work}/sfm is already finished (pass --overwrite to redo it)")
-    else:
-        capture = read_capture(Path(args.capture),
-                               on_missing="skip" if args.skip_missing else "error")
-        cfg = PRESETS[args.preset]
-        result = run_sfm(capture, work, cfg)
     s = result.summary
     print(
         f"registered {s['registered']}/{s['frames']} frames, {s['points']} points, "
@@ -78,6 +75,28 @@ def _cmd_sfm(args: argparse.Namespace) -> int:
         f"camera-centre residual to AR {s['residual_median_m'] * 1000:.1f} mm median"
     )
     print(f"COLMAP model: {work}/sfm/model; summary: {work}/sfm/summary.json")
+    return 0
+
+
+def _cmd_dense(args: argparse.Namespace) -> int:
+    from volec.capture import read_capture
+    from volec.dense import PRESETS as DENSE_PRESETS
+    from volec.masking import PRESETS as MASK_PRESETS
+    from volec.pipeline import dense_and_mask
+    from volec.sfm import PRESETS as SFM_PRESETS
+
+    work = Path(args.out)
+    capture = read_capture(Path(args.capture), on_missing="skip" if args.skip_missing else "error")
+    sfm, dense, masked = dense_and_mask(
+        capture, work, SFM_PRESETS[args.sfm_preset], DENSE_PRESETS[args.preset],
+        MASK_PRESETS[args.mask_preset], overwrite=args.overwrite, progress=not args.quiet,
+    )
+    d, m = dense.summary, masked.report
+    print(f"SfM: {sfm.summary['registered']}/{sfm.summary['frames']} frames registered")
+    print(f"dense: {d['depth_maps']} depth maps, {d['points']} points -> {work}/scene.ply")
+    print(f"masking: kept {m['kept']} of {m['input_points']} points "
+          f"({m['removed_outside_mask']} outside a food mask, {m['removed_too_few_views']} "
+          f"seen by too few views) -> {work}/food_masked.ply")
     return 0
 
 
@@ -127,6 +146,29 @@ def build_parser() -> argparse.ArgumentParser:
                      help="skip frames whose image file is missing (default: fail)")
     sfm.add_argument("--overwrite", action="store_true", help="redo a finished SfM stage")
     sfm.set_defaults(func=_cmd_sfm)
+
+    dense = sub.add_parser(
+        "dense",
+        help="dense scene cloud and masked food cloud (runs or reuses SfM first)",
+        description="Run SfM (reusing a finished one in WORKDIR), plane-sweep stereo on the "
+        "CPU (or a GPU when present) and food-mask filtering. Writes WORKDIR/scene.ply and "
+        "WORKDIR/food_masked.ply (metres, the capture's world frame) with dense.json and "
+        "masking.json; the capture is only read.",
+    )
+    dense.add_argument("capture", help="capture folder (transforms.json with mask_path)")
+    dense.add_argument("--out", required=True, type=Path, help="work folder")
+    dense.add_argument("--preset", default="default", choices=["default", "fast", "full_image"],
+                       help="dense stereo preset")
+    dense.add_argument("--mask-preset", default="default", choices=["default", "tolerant"],
+                       help="masking preset (tolerant: 90%% of views, masks grown 3 px)")
+    dense.add_argument("--sfm-preset", default="default",
+                       choices=["default", "exhaustive", "colmap_sift"])
+    dense.add_argument("--skip-missing", action="store_true",
+                       help="skip frames whose image file is missing (default: fail)")
+    dense.add_argument("--overwrite", action="store_true",
+                       help="redo every stage, replacing earlier results in WORKDIR")
+    dense.add_argument("--quiet", action="store_true", help="no progress bars")
+    dense.set_defaults(func=_cmd_dense)
     return parser
 
 

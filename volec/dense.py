@@ -361,6 +361,24 @@ def _aggregate(ref: _Reference, terms, inv_depth, cfg: DenseConfig):
     return torch.cat(out)
 
 
+def _parabola_peak(cost, index, value, spacing: float):
+    """Sub-sample peak of ``cost`` (n, P) near ``index`` (P,): the vertex of the parabola
+    through the best sample and its two neighbours, as ``value`` shifted by at most half a
+    ``spacing``; unchanged at the ends or where the cost is not concave."""
+    import torch
+
+    n = cost.shape[0]
+    jc = index.clamp(1, n - 2)
+    c_minus = cost.gather(0, (jc - 1)[None])[0]
+    c_zero = cost.gather(0, jc[None])[0]
+    c_plus = cost.gather(0, (jc + 1)[None])[0]
+    curvature = c_minus - 2 * c_zero + c_plus
+    concave = (curvature < -1e-6) & (index > 0) & (index < n - 1)
+    shift = torch.where(concave, 0.5 * (c_minus - c_plus) / curvature.clamp_max(-1e-6),
+                        torch.zeros_like(curvature))
+    return value + shift.clamp(-0.5, 0.5) * spacing
+
+
 def estimate_depth(views: list[View], ref_pos: int, sources: list[int],
                    near_far: tuple[float, float], cfg: DenseConfig) -> DepthMap:
     """Plane-sweep depth of ``views[ref_pos]`` against ``views[s]`` for ``s`` in ``sources``."""
@@ -381,31 +399,25 @@ def estimate_depth(views: list[View], ref_pos: int, sources: list[int],
         near, far = near_far
         inv_far, inv_near = 1.0 / far, 1.0 / near
         planes = torch.linspace(inv_far, inv_near, cfg.n_depth_planes, device=device)
-        cost = _aggregate(ref, terms, planes[:, None].expand(-1, P), cfg)  # (D, h, w)
+        cost = _aggregate(ref, terms, planes[:, None].expand(-1, P), cfg).reshape(-1, P)
         best_cost, best = cost.max(dim=0)
         at_end = (best == 0) | (best == cfg.n_depth_planes - 1)
-        inv = planes[best].reshape(-1)
         step = float(planes[1] - planes[0])
-        # Two local sweeps around the best depth, each with a finer step.
+        inv = _parabola_peak(cost, best, planes[best], step)
+        # Two local sweeps around the (now continuous) depth, each finer. A pixel's window is
+        # warped with its neighbours' own depths plus the same offset, which follows the
+        # surface; starting from the quantised planes instead, it would follow their
+        # staircase and not refine (measured on the textured-plane test).
         n = cfg.n_refine_hypotheses
         offsets = torch.linspace(-1.0, 1.0, n, device=device)
+        span = step / 2
         for _ in range(2):
-            hyp = inv[None] + offsets[:, None] * step  # (n, P)
+            hyp = inv[None] + offsets[:, None] * span  # (n, P)
             cost = _aggregate(ref, terms, hyp, cfg).reshape(n, P)
             best_cost, j = cost.max(dim=0)
-            inv = hyp.gather(0, j[None])[0]
-            spacing = step * 2.0 / (n - 1)
-            step = spacing
-        # Sub-hypothesis depth: a parabola through the best cost and its two neighbours.
-        jc = j.clamp(1, n - 2)
-        c_minus = cost.gather(0, (jc - 1)[None])[0]
-        c_zero = cost.gather(0, jc[None])[0]
-        c_plus = cost.gather(0, (jc + 1)[None])[0]
-        curvature = c_minus - 2 * c_zero + c_plus
-        shift = torch.where(curvature < -1e-6, 0.5 * (c_minus - c_plus) / curvature,
-                            torch.zeros_like(curvature)).clamp(-0.5, 0.5)
-        interior = (j > 0) & (j < n - 1)
-        inv = torch.where(interior, inv + shift * spacing, inv)
+            spacing = span * 2.0 / (n - 1)
+            inv = _parabola_peak(cost, j, hyp.gather(0, j[None])[0], spacing)
+            span = spacing
         keep = ((best_cost.reshape(-1) >= cfg.min_ncc) & ~at_end.reshape(-1)
                 & (ref.std.reshape(-1) >= cfg.min_texture_std) & (inv > 0))
         d = torch.where(keep, 1.0 / inv.clamp_min(1e-9), torch.zeros_like(inv))

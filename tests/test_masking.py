@@ -1,0 +1,99 @@
+"""Masking against silhouettes of a sphere, computed analytically."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from volec.capture import Capture, Frame, Intrinsics
+from volec.geometry import look_at_opencv
+from volec.masking import MaskingConfig, MaskingError, mask_cloud
+from volec.pointcloud import PointCloud
+
+INTR = Intrinsics(96, 72, 90.0, 90.0, 47.5, 35.5)
+RADIUS_M = 0.03
+
+
+def _sphere_capture(root: Path, n_views: int = 8) -> Capture:
+    """Cameras on a ring around a sphere of RADIUS_M at the origin, each with its exact
+    silhouette as mask."""
+    root.mkdir(parents=True, exist_ok=True)
+    u, v = np.meshgrid(np.arange(INTR.width), np.arange(INTR.height))
+    rays = np.stack([(u - INTR.cx) / INTR.fx, (v - INTR.cy) / INTR.fy, np.ones(u.shape)], -1)
+    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
+    frames = []
+    for i in range(n_views):
+        a = 2 * np.pi * i / n_views
+        eye = np.array([0.25 * np.cos(a), 0.25 * np.sin(a), 0.12])
+        T = look_at_opencv(eye, np.zeros(3), np.array([0.0, 0.0, 1.0]))
+        centre_cam = T[:3, :3].T @ (np.zeros(3) - eye)
+        # a ray is inside the silhouette when it passes within RADIUS_M of the centre
+        along = rays @ centre_cam
+        miss = np.linalg.norm(rays * along[..., None] - centre_cam, axis=-1)
+        mask = (miss <= RADIUS_M) & (along > 0)
+        path = root / f"mask_{i}.png"
+        Image.fromarray((mask * 255).astype(np.uint8)).save(path)
+        frames.append(Frame(f"f{i}.png", root / f"f{i}.png", INTR, T, mask_path=path))
+    return Capture(root, tuple(frames))
+
+
+def test_points_inside_the_item_stay_and_the_table_goes(tmp_path):
+    cap = _sphere_capture(tmp_path / "cap")
+    rng = np.random.default_rng(0)
+    inside = rng.normal(size=(300, 3))
+    radii = 0.9 * RADIUS_M * rng.random(300) ** (1 / 3)
+    inside *= (radii / np.linalg.norm(inside, axis=1))[:, None]
+    # a table ring at the sphere's foot, well outside its silhouettes
+    angle = rng.uniform(0, 2 * np.pi, 200)
+    radius = rng.uniform(2.0 * RADIUS_M, 3.0 * RADIUS_M, 200)
+    table = np.c_[radius * np.cos(angle), radius * np.sin(angle), np.full(200, -RADIUS_M)]
+    cloud = PointCloud(np.vstack([inside, table]))
+    poses = np.stack([f.T_world_from_cam for f in cap.frames])
+    result = mask_cloud(cloud, cap, poses, np.ones(len(cap), bool), MaskingConfig())
+    assert len(result.cloud) == 300
+    np.testing.assert_array_equal(result.cloud.xyz, inside)
+    r = result.report
+    assert r["input_points"] == 500 and r["kept"] == 300 and r["removed_outside_mask"] == 200
+    assert r["kept"] + r["removed_outside_mask"] + r["removed_too_few_views"] == 500
+
+
+def test_the_inside_fraction_decides_points_missed_by_one_view(tmp_path):
+    cap = _sphere_capture(tmp_path / "cap")
+    poses = np.stack([f.T_world_from_cam for f in cap.frames])
+    # a point straight behind the sphere from view 0, off-axis: outside some silhouettes
+    point = np.array([[-1.6 * RADIUS_M, 0.0, 0.0]])
+    strict = mask_cloud(PointCloud(np.vstack([point, [[0, 0, 0]]])), cap, poses,
+                        np.ones(len(cap), bool), MaskingConfig(min_inside_fraction=1.0))
+    assert len(strict.cloud) == 1  # only the centre
+    from volec.masking import mask_votes
+
+    seen, inside = mask_votes(PointCloud(point), cap, poses, np.ones(len(cap), bool), 0)
+    assert seen[0] == len(cap) and 0 < inside[0] < len(cap)
+    fraction = inside[0] / seen[0]
+    loose = mask_cloud(PointCloud(point), cap, poses, np.ones(len(cap), bool),
+                       MaskingConfig(min_inside_fraction=fraction, mask_dilation_px=0))
+    assert len(loose.cloud) == 1
+
+
+def test_unregistered_views_do_not_vote_and_too_few_views_remove(tmp_path):
+    cap = _sphere_capture(tmp_path / "cap")
+    poses = np.stack([f.T_world_from_cam for f in cap.frames])
+    use = np.zeros(len(cap), bool)
+    use[:2] = True
+    with pytest.raises(MaskingError, match="no point"):
+        mask_cloud(PointCloud(np.zeros((1, 3))), cap, poses, use, MaskingConfig(min_views=3))
+    result = mask_cloud(PointCloud(np.zeros((1, 3))), cap, poses, use, MaskingConfig(min_views=2))
+    assert result.report["views"] == 2 and len(result.cloud) == 1
+
+
+def test_a_capture_without_masks_is_a_clear_error(tmp_path):
+    cap = _sphere_capture(tmp_path / "cap")
+    from dataclasses import replace
+
+    bare = Capture(cap.root, tuple(replace(f, mask_path=None) for f in cap.frames))
+    poses = np.stack([f.T_world_from_cam for f in cap.frames])
+    with pytest.raises(MaskingError, match="no food mask"):
+        mask_cloud(PointCloud(np.zeros((1, 3))), bare, poses, np.ones(len(cap), bool))

@@ -1,0 +1,65 @@
+"""Cloud scores against analytic surfaces."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from volec.capture import Capture, Frame, Intrinsics
+from volec.geometry import look_at_opencv
+from volec.metrics import (
+    chamfer_distance,
+    cloud_scores,
+    distances_to_surface,
+    sample_surface,
+    views_seeing,
+)
+
+BOX = trimesh.creation.box(extents=(0.1, 0.1, 0.1))  # centred at the origin
+
+
+def _cameras_above(n: int = 6) -> Capture:
+    intr = Intrinsics(200, 150, 150.0, 150.0, 99.5, 74.5)
+    frames = []
+    for i in range(n):
+        a = 2 * np.pi * i / n
+        eye = np.array([0.4 * np.cos(a), 0.4 * np.sin(a), 0.35])
+        T = look_at_opencv(eye, np.zeros(3), np.array([0.0, 0.0, 1.0]))
+        frames.append(Frame(f"f{i}", Path(f"/none/f{i}"), intr, T))
+    return Capture(Path("/none"), tuple(frames))
+
+
+def test_distances_to_a_box():
+    pts = np.array([[0.0, 0.0, 0.06], [0.07, 0.0, 0.0], [0.0, 0.0, 0.0], [0.06, 0.06, 0.0]])
+    expected = [0.01, 0.02, 0.05, np.hypot(0.01, 0.01)]
+    np.testing.assert_allclose(distances_to_surface(pts, BOX), expected, atol=1e-6)
+
+
+def test_cameras_above_see_the_top_and_not_the_bottom():
+    top = np.array([[0.0, 0.0, 0.05], [0.02, -0.03, 0.05]])
+    bottom = np.array([[0.0, 0.0, -0.05]])
+    counts = views_seeing(np.vstack([top, bottom]), BOX, _cameras_above())
+    assert list(counts) == [6, 6, 0]
+
+
+def test_chamfer_of_shifted_copies():
+    a = sample_surface(BOX, 2000, seed=1)
+    assert chamfer_distance(a, a) == (0.0, 0.0)
+    far = np.array([[0.0, 0.0, 1.0]])
+    l1, l2 = chamfer_distance(far, far + [0.0, 0.0, 0.003])
+    assert l1 == pytest.approx(0.003) and l2 == pytest.approx(0.003**2)
+
+
+def test_cloud_scores_of_the_visible_surface():
+    samples = sample_surface(BOX, 80000, seed=2)
+    top_half = samples[samples[:, 2] > -0.0499]  # everything but the bottom face
+    scores = cloud_scores(top_half, BOX, _cameras_above(), n_samples=5000)
+    assert scores["accuracy_median_m"] < 1e-6
+    assert scores["completeness_visible"] > 0.99
+    # only the bottom face's 2 mm rim lies within 2 mm of the seen faces: 1 - 0.096^2 / 0.1^2
+    assert scores["completeness_unseen"] == pytest.approx(1 - 0.096**2 / 0.1**2, abs=0.015)
+    # the bottom is one face of six; the cameras see the other five
+    assert scores["visible_surface_fraction"] == pytest.approx(5 / 6, abs=0.03)
