@@ -10,16 +10,21 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from volec.capture import read_transforms_json
+from volec.dense import DenseConfig, run_dense, save_dense
 from volec.io import write_json_atomic
+from volec.masking import MaskingConfig, mask_cloud, save_masking
+from volec.metrics import cloud_scores
+from volec.pipeline import config_record, ensure_sfm
 from volec.sfm import SfmConfig, evaluate_sfm, run_sfm
 from volec.synth import PRESETS as SYNTH_PRESETS
-from volec.synth import SynthConfig, write_synthetic_capture
+from volec.synth import SynthConfig, load_ground_truth_mesh, write_synthetic_capture
 
 
 @dataclass(frozen=True)
@@ -63,7 +68,7 @@ def sfm_experiment(
     delete ``ROOT/*/work`` to measure it again.
     """
     cfg = cfg or SfmConfig()
-    key = json.loads(json.dumps(asdict(cfg)))
+    key = config_record(cfg)
     rows = []
     for scenario in scenario_list:
         for item in items:
@@ -116,4 +121,91 @@ def sfm_error_table(raw: pd.DataFrame) -> pd.DataFrame:
     magnitudes[numeric] = magnitudes[numeric].abs()
     means = magnitudes.groupby("scenario", sort=False)[numeric].mean().reset_index()
     means.insert(0, "item", "mean abs")
+    return pd.concat([shown, means], ignore_index=True)
+
+
+def dense_experiment(
+    root: Path, items: list[str], scenario: Scenario, poses: str = "refined",
+    dense_cfg: DenseConfig | None = None, mask_cfg: MaskingConfig | None = None,
+    sfm_cfg: SfmConfig | None = None,
+) -> pd.DataFrame:
+    """Dense stereo and masking per item, scored against the true food surface.
+
+    ``poses="refined"`` uses the SfM stage's poses (run or reused in ``ITEM-SCENARIO/work``),
+    as the pipeline does; ``poses="exact"`` uses the exact ones (in ``work-exact``), which
+    separates the stereo's own error from the poses'. Cached per run and configs in
+    ``dense_eval.json`` of the work folder (like :func:`sfm_experiment`, not keyed by code).
+    """
+    if poses not in ("refined", "exact"):
+        raise ValueError("poses must be 'refined' or 'exact'")
+    dense_cfg, mask_cfg = dense_cfg or DenseConfig(), mask_cfg or MaskingConfig()
+    key = {"sfm": config_record(sfm_cfg or SfmConfig()), "dense": config_record(dense_cfg),
+           "masking": config_record(mask_cfg), "poses": poses}
+    rows = []
+    for item in items:
+        out = ensure_capture(root, item, scenario)
+        work = out / ("work" if poses == "refined" else "work-exact")
+        cache = work / "dense_eval.json"
+        if cache.exists():
+            cached = json.loads(cache.read_text())
+            if cached.pop("key", None) == key:
+                rows.append(cached)
+                continue
+        capture = read_transforms_json(out / "capture")
+        exact = read_transforms_json(out / "ground_truth" / "transforms_exact.json",
+                                     check_image_sizes=False)
+        sfm, _ = ensure_sfm(capture, out / "work", sfm_cfg)
+        if poses == "refined":
+            T, registered = sfm.T_world_from_cam, sfm.registered
+        else:
+            T = np.stack([f.T_world_from_cam for f in exact.frames])
+            registered = np.ones(len(capture), bool)
+        start = time.perf_counter()
+        dense = run_dense(capture, T, registered, sfm.points_xyz, dense_cfg, progress=False)
+        dense_s = time.perf_counter() - start
+        start = time.perf_counter()
+        masked = mask_cloud(dense.cloud, capture, T, registered, mask_cfg)
+        mask_s = time.perf_counter() - start
+        save_dense(work, dense)
+        save_masking(work, masked)
+        scores = cloud_scores(masked.cloud.xyz, load_ground_truth_mesh(out), exact)
+        report = masked.report
+        row = {"item": item, "scenario": scenario.name, "poses": poses,
+               "frames": len(capture), "dense_s": dense_s, "mask_s": mask_s,
+               **{f"{k}_s": v for k, v in dense.summary["timings_s"].items()},
+               "scene_points": len(dense.cloud), "food_points": len(masked.cloud),
+               "removed_outside_mask": report["removed_outside_mask"],
+               "removed_too_few_views": report["removed_too_few_views"], **scores}
+        write_json_atomic(cache, {**row, "key": key})
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+#: Dense columns shown in tables, with the factor to their display unit.
+DENSE_COLUMNS = {
+    "accuracy_median_m": 1000.0,
+    "accuracy_p95_m": 1000.0,
+    "completeness_visible": 100.0,
+    "completeness_unseen": 100.0,
+    "visible_surface_fraction": 100.0,
+    "scene_points": 1.0,
+    "food_points": 1.0,
+    "removed_outside_mask": 1.0,
+    "dense_s": 1.0,
+    "mask_s": 1.0,
+}
+
+
+def dense_table(raw: pd.DataFrame) -> pd.DataFrame:
+    """The rows of :func:`dense_experiment` in display units (``_mm`` and ``_pct`` columns),
+    followed by a mean row per pose source."""
+    shown = raw[["item", "poses", "frames", *DENSE_COLUMNS]].copy()
+    for col, factor in DENSE_COLUMNS.items():
+        shown[col] = shown[col] * factor
+    renamed = {c: c[:-2] + "_mm" for c in DENSE_COLUMNS if c.endswith("_m")}
+    renamed |= {c: c + "_pct" for c, f in DENSE_COLUMNS.items() if f == 100.0}
+    shown = shown.rename(columns=renamed)
+    numeric = shown.columns.drop(["item", "poses"])
+    means = shown.groupby("poses", sort=False)[numeric].mean().reset_index()
+    means.insert(0, "item", "mean")
     return pd.concat([shown, means], ignore_index=True)

@@ -1,20 +1,24 @@
 """Figures: matplotlib pictures of captures, clouds and meshes for notebooks and reports.
 
-In: images, poses and tables as numpy arrays. Out: ``matplotlib.figure.Figure`` objects;
-:func:`save_figure` writes one to PNG atomically. Nothing here touches volec's data files.
+In: images, poses and tables as numpy arrays, point clouds and meshes. Out:
+``matplotlib.figure.Figure`` objects or rendered images (pyvista, off-screen);
+:func:`save_figure` writes a figure to PNG atomically. Nothing here touches volec's data files.
 """
 
 from __future__ import annotations
 
 import io
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
+import trimesh
 from matplotlib.figure import Figure
 
 from volec.io import write_bytes_atomic
+from volec.pointcloud import PointCloud
 
 
 def image_grid(
@@ -62,6 +66,70 @@ def trajectory_figure(
     err.set(xlabel="frame", ylabel="mm", title=f"camera-centre distance to the {reference} one")
     top.legend(fontsize=8)
     err.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def render_geometry(
+    geometry: PointCloud | trimesh.Trimesh,
+    eye: np.ndarray,
+    target: np.ndarray,
+    up: np.ndarray,
+    size_px: tuple[int, int] = (480, 360),
+    point_size_px: float = 2.0,
+) -> np.ndarray:
+    """An off-screen pyvista picture (H, W, 3 uint8) of a coloured cloud or a mesh, seen from
+    ``eye`` towards ``target`` (metres, world frame) with ``up`` upwards."""
+    os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    import pyvista as pv
+
+    plotter = pv.Plotter(off_screen=True, window_size=size_px)
+    plotter.set_background("white")
+    if isinstance(geometry, PointCloud):
+        data = pv.PolyData(geometry.xyz)
+        if geometry.rgb is not None:
+            data["rgb"] = geometry.rgb
+            plotter.add_mesh(data, scalars="rgb", rgb=True, point_size=point_size_px,
+                             render_points_as_spheres=False)
+        else:
+            plotter.add_mesh(data, color="#4477aa", point_size=point_size_px)
+    else:
+        faces = np.c_[np.full(len(geometry.faces), 3), geometry.faces].ravel()
+        plotter.add_mesh(pv.PolyData(np.asarray(geometry.vertices), faces), color="#d9b38c",
+                         smooth_shading=True)
+    plotter.camera.position = tuple(np.asarray(eye, float))
+    plotter.camera.focal_point = tuple(np.asarray(target, float))
+    plotter.camera.up = tuple(np.asarray(up, float))
+    plotter.camera.view_angle = 30.0
+    image = plotter.screenshot(return_img=True)
+    plotter.close()
+    return np.asarray(image)
+
+
+def geometry_panels(
+    panels: dict[str, PointCloud | trimesh.Trimesh],
+    eye: np.ndarray,
+    target: np.ndarray,
+    up: np.ndarray,
+    size_px: tuple[int, int] = (480, 360),
+) -> Figure:
+    """One :func:`render_geometry` picture per named cloud or mesh, side by side, all from
+    the same viewpoint."""
+    images = [render_geometry(g, eye, target, up, size_px) for g in panels.values()]
+    return image_grid(images, list(panels), ncols=len(images), size_in=4.0)
+
+
+def distance_histogram(distances_mm: dict[str, np.ndarray], limit_mm: float = 5.0) -> Figure:
+    """Histograms of point-to-surface distances (name -> (N,) mm), with their medians."""
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    bins = np.linspace(0, limit_mm, 51)
+    for name, d in distances_mm.items():
+        d = np.asarray(d)
+        ax.hist(np.clip(d, 0, limit_mm), bins=bins, histtype="step", density=True,
+                label=f"{name} (median {np.median(d):.2f} mm)")
+    ax.set(xlabel=f"distance to the true surface, mm (clipped at {limit_mm:g})",
+           ylabel="density")
+    ax.legend(fontsize=8)
     fig.tight_layout()
     return fig
 
