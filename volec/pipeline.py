@@ -18,7 +18,14 @@ from typing import Any
 from volec.capture import Capture
 from volec.dense import DenseConfig, DenseResult, load_dense, run_dense, save_dense
 from volec.errors import OutputExistsError
-from volec.masking import MaskingConfig, MaskingResult, load_masking, mask_cloud, save_masking
+from volec.masking import (
+    MaskingConfig,
+    MaskingError,
+    MaskingResult,
+    load_masking,
+    mask_cloud,
+    save_masking,
+)
 from volec.sfm import SfmConfig, SfmResult, load_sfm, run_sfm
 
 log = logging.getLogger(__name__)
@@ -97,7 +104,14 @@ def dense_and_mask(capture: Capture, work_dir: Path, sfm_cfg: SfmConfig | None =
                    dense_cfg: DenseConfig | None = None, mask_cfg: MaskingConfig | None = None,
                    overwrite: bool = False, progress: bool = True
                    ) -> tuple[SfmResult, DenseResult, MaskingResult]:
-    """SfM (reused when finished), dense stereo and masking in ``work_dir``."""
+    """SfM (reused when finished), dense stereo and masking in ``work_dir``. A capture
+    without a mask for every frame is refused before any work is done."""
+    if not capture.has_masks:
+        missing = [f.name for f in capture.frames if f.mask_path is None]
+        raise MaskingError(
+            f"{len(missing)} of {len(capture)} frames have no food mask (first: {missing[0]}); "
+            "masking needs a mask_path for every frame in transforms.json"
+        )
     sfm, redone = ensure_sfm(capture, work_dir, sfm_cfg, overwrite)
     dense, redone = ensure_dense(capture, sfm, work_dir, dense_cfg, overwrite or redone,
                                  progress)

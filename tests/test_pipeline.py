@@ -1,0 +1,75 @@
+"""Stage reuse, and `volec dense` end to end on a small synthetic capture."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from volec.cli import main
+from volec.dense import DenseConfig
+from volec.errors import OutputExistsError
+from volec.metrics import distances_to_surface
+from volec.pipeline import config_record, reusable
+from volec.pointcloud import read_ply
+from volec.synth import PRESETS, load_ground_truth_mesh, write_synthetic_capture
+
+
+def test_a_stage_is_reused_only_with_the_same_settings(tmp_path):
+    record = tmp_path / "dense.json"
+    same = config_record(DenseConfig())
+    assert reusable(record, None, DenseConfig(), overwrite=False) is False
+    assert reusable(record, same, DenseConfig(), overwrite=False) is True
+    assert reusable(record, same, DenseConfig(), overwrite=True) is False
+    with pytest.raises(OutputExistsError, match="n_depth_planes"):
+        reusable(record, same, DenseConfig(n_depth_planes=32), overwrite=False)
+
+
+def _snapshot(folder: Path) -> dict[str, tuple[int, int]]:
+    return {str(p.relative_to(folder)): (p.stat().st_size, p.stat().st_mtime_ns)
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_volec_dense_end_to_end(small_capture, small_result, tmp_path, capsys):
+    work = tmp_path / "work"
+    shutil.copytree(small_capture / "work" / "sfm", work / "sfm")  # SfM is reused
+    capture = small_capture / "capture"
+    before = _snapshot(capture)
+    assert main(["dense", str(capture), "--out", str(work), "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "food_masked.ply" in out
+    assert _snapshot(capture) == before  # the capture is only read
+
+    scene, food = read_ply(work / "scene.ply"), read_ply(work / "food_masked.ply")
+    report = json.loads((work / "masking.json").read_text())
+    assert report["kept"] == len(food) and report["input_points"] == len(scene)
+    assert scene.normals is not None and scene.rgb is not None
+    mesh = load_ground_truth_mesh(small_capture)
+    d_food = distances_to_surface(food.xyz, mesh)
+    d_scene = distances_to_surface(scene.xyz, mesh)
+    # metric, in the capture's world frame, on the true surface
+    assert np.median(d_food) < 0.0015
+    assert np.percentile(d_food, 90) < 0.004
+    # what masking removed was mostly not food
+    removed = d_scene > 0.004
+    assert removed.sum() > 0 and (d_food > 0.004).mean() < 0.25 * removed.mean()
+
+    # a second run reuses every stage; other settings are refused, nothing is touched
+    stages = _snapshot(work)
+    assert main(["dense", str(capture), "--out", str(work), "--quiet"]) == 0
+    assert _snapshot(work) == stages
+    assert main(["dense", str(capture), "--out", str(work), "--preset", "fast", "--quiet"]) == 2
+    assert "other settings" in capsys.readouterr().err
+    assert _snapshot(work) == stages
+
+
+def test_volec_dense_refuses_a_capture_without_masks(tmp_path, capsys):
+    out = write_synthetic_capture("apple", tmp_path / "apple",
+                                  PRESETS["quick"].with_(n_frames=3, masks_in_capture=False),
+                                  progress=False)
+    assert main(["dense", str(out / "capture"), "--out", str(tmp_path / "work")]) == 2
+    assert "no food mask" in capsys.readouterr().err
+    assert not (tmp_path / "work").exists()
