@@ -43,8 +43,13 @@ from scipy import ndimage
 from volec.capture import Capture, Frame, Intrinsics, read_mask
 from volec.errors import VolecError
 from volec.geometry import invert_rigid
-from volec.io import write_json_atomic
-from volec.pointcloud import PointCloud, from_open3d, read_ply, to_open3d, write_ply
+from volec.pointcloud import (
+    PointCloud,
+    from_open3d,
+    read_cloud_record,
+    to_open3d,
+    write_cloud_record,
+)
 
 log = logging.getLogger(__name__)
 
@@ -627,15 +632,11 @@ def run_dense(capture: Capture, T_world_from_cam: np.ndarray, registered: np.nda
 def save_dense(work_dir: Path, result: DenseResult) -> Path:
     """Write ``WORKDIR/scene.ply`` and ``WORKDIR/dense.json`` (each atomically)."""
     work_dir = Path(work_dir)
-    path = write_ply(result.cloud, work_dir / "scene.ply")
-    write_json_atomic(work_dir / "dense.json", result.summary)
-    return path
+    return write_cloud_record(result.cloud, result.summary, work_dir / "scene.ply",
+                              work_dir / "dense.json")
 
 
 def load_dense(work_dir: Path) -> DenseResult:
     """Read a finished dense stage back from ``work_dir``."""
-    import json
-
     work_dir = Path(work_dir)
-    return DenseResult(read_ply(work_dir / "scene.ply"),
-                       json.loads((work_dir / "dense.json").read_text()))
+    return DenseResult(*read_cloud_record(work_dir / "scene.ply", work_dir / "dense.json"))

@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -59,6 +61,19 @@ def ensure_capture(root: Path, item: str, scenario: Scenario) -> Path:
     return out
 
 
+def cached_row(cache: Path, key: dict[str, Any], compute: Callable[[], dict[str, Any]],
+               key_field: str = "key") -> dict[str, Any]:
+    """The result row stored in ``cache`` when it was made with ``key``; otherwise
+    ``compute()``, stored with its key (atomically) and returned."""
+    if cache.exists():
+        cached = json.loads(cache.read_text())
+        if cached.pop(key_field, None) == key:
+            return cached
+    row = compute()
+    write_json_atomic(cache, {**row, key_field: key})
+    return row
+
+
 def sfm_experiment(
     root: Path, items: list[str], scenario_list: list[Scenario], cfg: SfmConfig | None = None
 ) -> pd.DataFrame:
@@ -73,23 +88,20 @@ def sfm_experiment(
     for scenario in scenario_list:
         for item in items:
             out = ensure_capture(root, item, scenario)
-            cache = out / "work" / "sfm_eval.json"
-            if cache.exists():
-                cached = json.loads(cache.read_text())
-                if cached.pop("sfm_config", None) == key:
-                    rows.append(cached)
-                    continue
-            reported = read_transforms_json(out / "capture")
-            exact = read_transforms_json(out / "ground_truth" / "transforms_exact.json",
-                                         check_image_sizes=False)
-            start = time.perf_counter()
-            result = run_sfm(reported, out / "work", cfg)
-            row = {"item": item, "scenario": scenario.name, "frames": len(reported),
-                   "wall_s": time.perf_counter() - start,
-                   **evaluate_sfm(result, exact, reported),
-                   **{f"{k}_s": v for k, v in result.summary["timings_s"].items()}}
-            write_json_atomic(cache, {**row, "sfm_config": key})
-            rows.append(row)
+
+            def run(out: Path = out, item: str = item, scenario: Scenario = scenario
+                    ) -> dict[str, Any]:
+                reported = read_transforms_json(out / "capture")
+                exact = read_transforms_json(out / "ground_truth" / "transforms_exact.json",
+                                             check_image_sizes=False)
+                start = time.perf_counter()
+                result = run_sfm(reported, out / "work", cfg)
+                return {"item": item, "scenario": scenario.name, "frames": len(reported),
+                        "wall_s": time.perf_counter() - start,
+                        **evaluate_sfm(result, exact, reported),
+                        **{f"{k}_s": v for k, v in result.summary["timings_s"].items()}}
+
+            rows.append(cached_row(out / "work" / "sfm_eval.json", key, run, "sfm_config"))
     return pd.DataFrame(rows)
 
 
@@ -145,39 +157,35 @@ def dense_experiment(
     for item in items:
         out = ensure_capture(root, item, scenario)
         work = out / ("work" if poses == "refined" else "work-exact")
-        cache = work / "dense_eval.json"
-        if cache.exists():
-            cached = json.loads(cache.read_text())
-            if cached.pop("key", None) == key:
-                rows.append(cached)
-                continue
-        capture = read_transforms_json(out / "capture")
-        exact = read_transforms_json(out / "ground_truth" / "transforms_exact.json",
-                                     check_image_sizes=False)
-        sfm, _ = ensure_sfm(capture, out / "work", sfm_cfg)
-        if poses == "refined":
-            T, registered = sfm.T_world_from_cam, sfm.registered
-        else:
-            T = np.stack([f.T_world_from_cam for f in exact.frames])
-            registered = np.ones(len(capture), bool)
-        start = time.perf_counter()
-        dense = run_dense(capture, T, registered, sfm.points_xyz, dense_cfg, progress=False)
-        dense_s = time.perf_counter() - start
-        start = time.perf_counter()
-        masked = mask_cloud(dense.cloud, capture, T, registered, mask_cfg)
-        mask_s = time.perf_counter() - start
-        save_dense(work, dense)
-        save_masking(work, masked)
-        scores = cloud_scores(masked.cloud.xyz, load_ground_truth_mesh(out), exact)
-        report = masked.report
-        row = {"item": item, "scenario": scenario.name, "poses": poses,
-               "frames": len(capture), "dense_s": dense_s, "mask_s": mask_s,
-               **{f"{k}_s": v for k, v in dense.summary["timings_s"].items()},
-               "scene_points": len(dense.cloud), "food_points": len(masked.cloud),
-               "removed_outside_mask": report["removed_outside_mask"],
-               "removed_too_few_views": report["removed_too_few_views"], **scores}
-        write_json_atomic(cache, {**row, "key": key})
-        rows.append(row)
+
+        def run(out: Path = out, work: Path = work, item: str = item) -> dict[str, Any]:
+            capture = read_transforms_json(out / "capture")
+            exact = read_transforms_json(out / "ground_truth" / "transforms_exact.json",
+                                         check_image_sizes=False)
+            sfm, _ = ensure_sfm(capture, out / "work", sfm_cfg)
+            if poses == "refined":
+                T, registered = sfm.T_world_from_cam, sfm.registered
+            else:
+                T = np.stack([f.T_world_from_cam for f in exact.frames])
+                registered = np.ones(len(capture), bool)
+            start = time.perf_counter()
+            dense = run_dense(capture, T, registered, sfm.points_xyz, dense_cfg, progress=False)
+            dense_s = time.perf_counter() - start
+            start = time.perf_counter()
+            masked = mask_cloud(dense.cloud, capture, T, registered, mask_cfg)
+            mask_s = time.perf_counter() - start
+            save_dense(work, dense)
+            save_masking(work, masked)
+            scores = cloud_scores(masked.cloud.xyz, load_ground_truth_mesh(out), exact)
+            report = masked.report
+            return {"item": item, "scenario": scenario.name, "poses": poses,
+                    "frames": len(capture), "dense_s": dense_s, "mask_s": mask_s,
+                    **{f"{k}_s": v for k, v in dense.summary["timings_s"].items()},
+                    "scene_points": len(dense.cloud), "food_points": len(masked.cloud),
+                    "removed_outside_mask": report["removed_outside_mask"],
+                    "removed_too_few_views": report["removed_too_few_views"], **scores}
+
+        rows.append(cached_row(work / "dense_eval.json", key, run))
     return pd.DataFrame(rows)
 
 

@@ -15,7 +15,6 @@ grown by a few pixels for the same reason.
 
 from __future__ import annotations
 
-import json
 import logging
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -26,8 +25,7 @@ from scipy import ndimage
 
 from volec.capture import Capture, read_mask
 from volec.errors import VolecError
-from volec.io import write_json_atomic
-from volec.pointcloud import PointCloud, read_ply, write_ply
+from volec.pointcloud import PointCloud, read_cloud_record, write_cloud_record
 
 log = logging.getLogger(__name__)
 
@@ -133,13 +131,12 @@ def mask_cloud(cloud: PointCloud, capture: Capture, T_world_from_cam: np.ndarray
 def save_masking(work_dir: Path, result: MaskingResult) -> Path:
     """Write ``WORKDIR/food_masked.ply`` and ``WORKDIR/masking.json`` (each atomically)."""
     work_dir = Path(work_dir)
-    path = write_ply(result.cloud, work_dir / "food_masked.ply")
-    write_json_atomic(work_dir / "masking.json", result.report)
-    return path
+    return write_cloud_record(result.cloud, result.report, work_dir / "food_masked.ply",
+                              work_dir / "masking.json")
 
 
 def load_masking(work_dir: Path) -> MaskingResult:
     """Read a finished masking stage back from ``work_dir``."""
     work_dir = Path(work_dir)
-    return MaskingResult(read_ply(work_dir / "food_masked.ply"),
-                         json.loads((work_dir / "masking.json").read_text()))
+    return MaskingResult(*read_cloud_record(work_dir / "food_masked.ply",
+                                            work_dir / "masking.json"))

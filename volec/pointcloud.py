@@ -11,6 +11,7 @@ import os
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -102,3 +103,20 @@ def read_ply(path: Path) -> PointCloud:
     if len(pcd.points) == 0:
         raise VolecError(f"{path} holds no points (or is not a point cloud open3d can read)")
     return from_open3d(pcd)
+
+
+def write_cloud_record(cloud: PointCloud, record: dict[str, Any], ply_path: Path,
+                       json_path: Path) -> Path:
+    """A stage's output: the cloud as PLY and its record as JSON, each written atomically."""
+    from volec.io import write_json_atomic
+
+    path = write_ply(cloud, ply_path)
+    write_json_atomic(json_path, record)
+    return path
+
+
+def read_cloud_record(ply_path: Path, json_path: Path) -> tuple[PointCloud, dict[str, Any]]:
+    """The cloud and record :func:`write_cloud_record` wrote."""
+    import json
+
+    return read_ply(ply_path), json.loads(Path(json_path).read_text())
