@@ -211,6 +211,12 @@ def family_mesh(name: str, seed: int, resolution: int = 72) -> trimesh.Trimesh:
     return scale_to_volume(mesh, volume_ml)
 
 
-def training_shapes(per_family: int, first_seed: int = 0) -> list[tuple[str, int]]:
-    """(family, seed) pairs: ``per_family`` seeds per family, from ``first_seed`` on."""
-    return [(f, s) for f in FAMILIES for s in range(first_seed, first_seed + per_family)]
+def training_shapes(per_family: int, first_seed: int = 0,
+                    families: list[str] | None = None) -> list[tuple[str, int]]:
+    """(family, seed) pairs: ``per_family`` seeds per family (all families, or ``families``),
+    from ``first_seed`` on."""
+    names = families or list(FAMILIES)
+    unknown = set(names) - set(FAMILIES)
+    if unknown:
+        raise KeyError(f"unknown shape families: {', '.join(sorted(unknown))}")
+    return [(f, s) for f in names for s in range(first_seed, first_seed + per_family)]

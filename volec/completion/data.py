@@ -1,0 +1,167 @@
+"""Training data for completion: realistic partial views of procedural food shapes.
+
+In: training shapes (:mod:`volec.synth.families`, never the benchmark items) and a
+:class:`ViewConfig`. Out: per shape, the complete surface (uniform samples) and
+``views_per_shape`` partial clouds, each what a phone orbit would reconstruct: the points that
+at least two cameras of a random orbit see (an arc of random length, so part of the item can
+be missing), never the bottom (it rests on the table), with a little noise. Stored as one
+``.npz`` per shape; :class:`CompletionDataset` serves normalized (partial, complete) pairs.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from volec.capture import Capture, Frame, Intrinsics
+from volec.completion.preprocess import fit_normalization, resample
+from volec.geometry import look_at_opencv
+from volec.io import write_bytes_atomic
+from volec.metrics import sample_surface, views_seeing
+from volec.synth.families import family_mesh
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class ViewConfig:
+    """How partial views are simulated."""
+
+    n_surface_points: int = 8000
+    """Surface samples tested for visibility per view (the partial is a subset)."""
+    n_complete_points: int = 8192
+    """Uniform samples of the complete surface stored as the target."""
+    cameras: int = 10
+    """Cameras along each view's orbit."""
+    arc_deg: tuple[float, float] = (150.0, 360.0)
+    """Range of the orbit's arc, degrees (less than 360: part of the side is unseen)."""
+    elevation_deg: tuple[float, float] = (15.0, 60.0)
+    """Range of camera elevations above the table, degrees."""
+    min_views: int = 2
+    """A point must be seen by this many cameras (stereo needs two)."""
+    contact_height_m: float = 0.002
+    """Points this close to the table are hidden (the food rests on it)."""
+    noise_m: float = 0.0003
+    """Standard deviation of the Gaussian noise added to the partial points, metres."""
+
+
+def orbit_cameras(mesh: trimesh.Trimesh, rng: np.random.Generator, cfg: ViewConfig) -> Capture:
+    """A random orbit of ``cfg.cameras`` pinhole cameras looking at the mesh from above the
+    table (z = 0)."""
+    centre = mesh.bounds.mean(axis=0)
+    radius = float(np.linalg.norm(mesh.extents)) / 2
+    arc = np.radians(rng.uniform(*cfg.arc_deg))
+    start = rng.uniform(0, 2 * np.pi)
+    intr = Intrinsics(320, 240, 260.0, 260.0, 159.5, 119.5)
+    frames = []
+    for i in range(cfg.cameras):
+        a = start + arc * i / max(cfg.cameras - 1, 1)
+        e = np.radians(rng.uniform(*cfg.elevation_deg))
+        eye = centre + 3.5 * radius * np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a),
+                                                np.sin(e)])
+        T = look_at_opencv(eye, centre, np.array([0.0, 0.0, 1.0]))
+        frames.append(Frame(f"cam{i}", Path(f"cam{i}"), intr, T))
+    return Capture(Path("."), tuple(frames))
+
+
+def partial_view(mesh: trimesh.Trimesh, rng: np.random.Generator, cfg: ViewConfig) -> np.ndarray:
+    """(N, 3) points of ``mesh`` that one random orbit reconstructs, metres."""
+    points = sample_surface(mesh, cfg.n_surface_points, seed=int(rng.integers(2**31)))
+    seen = views_seeing(points, mesh, orbit_cameras(mesh, rng, cfg)) >= cfg.min_views
+    seen &= points[:, 2] > mesh.bounds[0, 2] + cfg.contact_height_m
+    return points[seen] + rng.normal(scale=cfg.noise_m, size=(int(seen.sum()), 3))
+
+
+def shape_sample(family: str, seed: int, views: int, cfg: ViewConfig) -> dict[str, np.ndarray]:
+    """The complete samples and ``views`` partial views of the shape ``family-seed``."""
+    mesh = family_mesh(family, seed)
+    rng = np.random.default_rng([seed, views, len(family)])
+    partials = [partial_view(mesh, rng, cfg) for _ in range(views)]
+    return {
+        "complete": sample_surface(mesh, cfg.n_complete_points, seed=seed),
+        "partial_points": np.concatenate(partials).astype(np.float32),
+        "partial_sizes": np.array([len(p) for p in partials]),
+        "volume_ml": np.array(mesh.volume * 1e6),
+    }
+
+
+def _write_shape(args: tuple[str, int, int, ViewConfig, Path]) -> Path:
+    import io
+
+    family, seed, views, cfg, path = args
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **shape_sample(family, seed, views, cfg))
+    write_bytes_atomic(path, buf.getvalue())
+    return path
+
+
+def write_dataset(shapes: list[tuple[str, int]], views: int, out_dir: Path,
+                  cfg: ViewConfig | None = None, workers: int = 2,
+                  progress: bool = True) -> list[Path]:
+    """One ``FAMILY-SEED.npz`` per shape in ``out_dir``, made by ``workers`` processes. An
+    existing file is kept: its name and the config fix its content (the config's hash is in
+    the folder name the callers choose)."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from tqdm.auto import tqdm
+
+    cfg = cfg or ViewConfig()
+    out_dir = Path(out_dir)
+    paths = [out_dir / f"{family}-{seed}.npz" for family, seed in shapes]
+    todo = [(f, s, views, cfg, p) for (f, s), p in zip(shapes, paths, strict=True)
+            if not p.exists()]
+    if todo:
+        bar = tqdm(total=len(todo), desc="completion training data", disable=not progress)
+        if workers > 1:
+            with ProcessPoolExecutor(workers) as pool:
+                for _ in pool.map(_write_shape, todo):
+                    bar.update()
+        else:
+            for args in todo:
+                _write_shape(args)
+                bar.update()
+        bar.close()
+    return paths
+
+
+class CompletionDataset:
+    """Normalized (partial, complete) pairs from the files of :func:`write_dataset`.
+
+    Item ``i`` is view ``i % views`` of shape ``i // views``; each draw resamples the partial
+    to ``n_input`` points and the complete cloud to ``n_complete`` with ``rng``, and maps both
+    with the partial's normalization, as inference will.
+    """
+
+    def __init__(self, paths: list[Path], n_input: int, n_complete: int) -> None:
+        self.n_input, self.n_complete = n_input, n_complete
+        self.partials: list[np.ndarray] = []
+        self.completes: list[np.ndarray] = []
+        self.owner: list[int] = []
+        for k, path in enumerate(paths):
+            with np.load(path) as data:
+                self.completes.append(data["complete"].astype(float))
+                splits = np.cumsum(data["partial_sizes"])[:-1]
+                for part in np.split(data["partial_points"].astype(float), splits):
+                    self.partials.append(part)
+                    self.owner.append(k)
+
+    def __len__(self) -> int:
+        return len(self.partials)
+
+    def pair(self, i: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """(partial (n_input, 3), complete (n_complete, 3)) of item ``i``, normalized."""
+        partial = self.partials[i]
+        norm = fit_normalization(partial)
+        complete = resample(self.completes[self.owner[i]], self.n_complete, rng)
+        return norm.apply(resample(partial, self.n_input, rng)), norm.apply(complete)
+
+    def batch(self, indices: np.ndarray, rng: np.random.Generator
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """Stacked float32 pairs of :meth:`pair` for ``indices``."""
+        pairs = [self.pair(int(i), rng) for i in indices]
+        return (np.stack([p for p, _ in pairs]).astype(np.float32),
+                np.stack([c for _, c in pairs]).astype(np.float32))
