@@ -100,6 +100,31 @@ def _cmd_dense(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_complete(args: argparse.Namespace) -> int:
+    from volec.completion.complete import SHIPPED_CHECKPOINT, CompletionConfig, complete_cloud
+    from volec.completion.train import load_checkpoint
+    from volec.errors import OutputExistsError
+    from volec.pointcloud import read_ply, write_ply
+
+    source, out = Path(args.partial), Path(args.out)
+    if out.resolve() == source.resolve():
+        raise OutputExistsError("--out is the input file; volec never writes over its input")
+    if out.exists() and not args.overwrite:
+        raise OutputExistsError(f"{out} exists; pass --overwrite to replace it")
+    partial = read_ply(source)
+    checkpoint = Path(args.checkpoint) if args.checkpoint else SHIPPED_CHECKPOINT
+    try:
+        model, meta = load_checkpoint(checkpoint)
+    except FileNotFoundError as e:
+        raise VolecError(str(e)) from e
+    result = complete_cloud(partial, model, CompletionConfig(merge_partial=not args.network_only))
+    write_ply(result.cloud, out)
+    s = result.summary
+    print(f"completed {s['partial_points']} partial points with {s['predicted_kept']} predicted "
+          f"ones in {s['seconds']:.2f} s -> {out} ({s['points']} points)")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``volec`` command."""
     parser = argparse.ArgumentParser(
@@ -169,6 +194,21 @@ def build_parser() -> argparse.ArgumentParser:
                        help="redo every stage, replacing earlier results in WORKDIR")
     dense.add_argument("--quiet", action="store_true", help="no progress bars")
     dense.set_defaults(func=_cmd_dense)
+
+    complete = sub.add_parser(
+        "complete",
+        help="complete a metric partial cloud of one food item with the trained network",
+        description="Normalize the partial cloud, predict the missing part with the shipped "
+        "SymmCompletion checkpoint, map it back into the input's frame and remove outliers. "
+        "Writes a PLY with the partial's points plus the predicted ones (grey).",
+    )
+    complete.add_argument("partial", help="partial cloud (PLY; metres, any frame)")
+    complete.add_argument("--out", required=True, type=Path, help="completed cloud (PLY)")
+    complete.add_argument("--checkpoint", help="a checkpoint other than the shipped one")
+    complete.add_argument("--network-only", action="store_true",
+                          help="write only the predicted points, not the partial's")
+    complete.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
+    complete.set_defaults(func=_cmd_complete)
     return parser
 
 

@@ -26,7 +26,7 @@ import torch
 
 from volec.completion.data import CompletionDataset, ViewConfig, write_dataset
 from volec.completion.model import PRESETS as MODEL_PRESETS
-from volec.completion.model import ModelConfig, SymmCompletion, chamfer_l1, completion_loss
+from volec.completion.model import ModelConfig, SymmCompletion, chamfer_l1
 from volec.io import write_bytes_atomic, write_text_atomic
 from volec.synth.families import training_shapes
 
@@ -39,7 +39,7 @@ class TrainConfig:
 
     model: str = "cpu"
     """Model preset (:data:`volec.completion.model.PRESETS`)."""
-    steps: int = 4000
+    steps: int = 4500
     """Optimiser steps."""
     batch_size: int = 8
     """Pairs per step (paper: 16)."""
@@ -173,13 +173,13 @@ def train(cfg: TrainConfig, checkpoint: Path, data_dir: Path, progress: bool = T
             group["lr"] = learning_rate(cfg, step)
         idx = rng.integers(len(train_data), size=cfg.batch_size)
         partial, complete = (torch.from_numpy(a) for a in train_data.batch(idx, rng))
-        outputs = model(partial)
-        loss = completion_loss(outputs, complete)
+        per_stage = [chamfer_l1(o, complete) for o in model(partial)]
+        loss = torch.stack(per_stage).sum()  # the paper's loss: every stage's Chamfer-L1
         optimiser.zero_grad()
         loss.backward()
         optimiser.step()
         row: dict[str, Any] = {"step": step + 1, "loss": float(loss),
-                               "cd_l1_final": float(chamfer_l1(outputs[-1].detach(), complete)),
+                               "cd_l1_final": float(per_stage[-1]),
                                "lr": learning_rate(cfg, step),
                                "elapsed_s": round(time.perf_counter() - start, 2)}
         last = step + 1 == cfg.steps

@@ -1,0 +1,101 @@
+"""Completing a metric partial cloud with the trained network.
+
+In: a :class:`~volec.pointcloud.PointCloud` of one food item (metres, any frame and
+orientation), a trained model and a :class:`CompletionConfig`. Out: a :class:`Completion`:
+the completed cloud in the input's frame (the partial's points plus the network's, which are
+coloured grey), the network's points alone, and the normalization used.
+
+Steps (paper section III-C): normalize (centre, unit sphere, PCA axes), resample to the
+network's input size, predict, map back with the normalization's exact inverse, then drop
+statistical outliers from the predicted points.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from volec.completion.model import SymmCompletion
+from volec.completion.preprocess import (
+    Normalization,
+    fit_normalization,
+    remove_statistical_outliers,
+    resample,
+)
+from volec.errors import VolecError
+from volec.pointcloud import PointCloud
+
+#: The checkpoint shipped with volec (trained by ``make retrain``, preset ``cpu``).
+SHIPPED_CHECKPOINT = (Path(__file__).resolve().parents[2] / "data" / "completion"
+                      / "symmcompletion_cpu.pt")
+
+#: Colour given to the points the network adds.
+PREDICTED_RGB = (150, 150, 150)
+
+
+@dataclass(frozen=True)
+class CompletionConfig:
+    """Options of the completion stage."""
+
+    merge_partial: bool = True
+    """The completed cloud is the partial plus the predicted points (else predicted only)."""
+    outlier_neighbours: int = 16
+    """Statistical outlier removal on the predicted points: neighbours considered..."""
+    outlier_std_ratio: float = 2.0
+    """... and the standard deviations beyond which a point is dropped."""
+    min_points: int = 64
+    """Partial clouds with fewer points are refused."""
+    seed: int = 0
+    """Seeds the resampling of the partial to the network's input size."""
+
+
+@dataclass(eq=False)
+class Completion:
+    """A completed cloud and how it was made."""
+
+    cloud: PointCloud
+    """The completed cloud, metres, in the partial's frame."""
+    predicted_xyz: np.ndarray
+    """(M, 3) the network's points after outlier removal, metres, the partial's frame."""
+    normalization: Normalization
+    """The transform into the network's frame."""
+    summary: dict[str, Any] = field(default_factory=dict)
+    """Counts and timing."""
+
+
+def complete_cloud(partial: PointCloud, model: SymmCompletion,
+                   cfg: CompletionConfig | None = None) -> Completion:
+    """Complete ``partial`` with ``model`` (see the module docstring)."""
+    cfg = cfg or CompletionConfig()
+    if len(partial) < cfg.min_points:
+        raise VolecError(
+            f"the partial cloud has {len(partial)} points; completion needs at least "
+            f"{cfg.min_points} (is it the masked food cloud?)"
+        )
+    if not np.all(np.isfinite(partial.xyz)):
+        raise VolecError("the partial cloud has non-finite coordinates")
+    start = time.perf_counter()
+    norm = fit_normalization(partial.xyz)
+    rng = np.random.default_rng(cfg.seed)
+    x = norm.apply(resample(partial.xyz, model.cfg.n_input, rng))
+    device = next(model.parameters()).device
+    model.eval()
+    with torch.no_grad():
+        out = model(torch.from_numpy(x[None]).float().to(device))[-1][0].cpu().numpy()
+    predicted = remove_statistical_outliers(norm.invert(out.astype(float)),
+                                            cfg.outlier_neighbours, cfg.outlier_std_ratio)
+    grey = np.tile(np.array(PREDICTED_RGB, np.uint8), (len(predicted), 1))
+    if cfg.merge_partial:
+        rgb = None if partial.rgb is None else np.concatenate([partial.rgb, grey])
+        cloud = PointCloud(np.concatenate([partial.xyz, predicted]), rgb)
+    else:
+        cloud = PointCloud(predicted, grey)
+    summary = {"partial_points": len(partial), "predicted_points": int(len(out)),
+               "predicted_kept": int(len(predicted)), "points": len(cloud),
+               "seconds": round(time.perf_counter() - start, 3)}
+    return Completion(cloud, predicted, norm, summary)
