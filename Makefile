@@ -53,5 +53,10 @@ paper-quick:
 data: setup
 	$(VENV)/bin/volec synth all --out data/benchmark
 
+# Retrain the completion network (preset cpu, about an hour on 2 cores) and replace the shipped
+# checkpoint; the training data goes to data/completion-data. `make paper` only uses the checkpoint.
+retrain: setup
+	$(PY) -m volec.completion.train --preset cpu --out data/completion/symmcompletion_cpu.pt
+
 clean:
 	rm -rf build .pytest_cache .ruff_cache

@@ -217,3 +217,122 @@ def dense_table(raw: pd.DataFrame) -> pd.DataFrame:
     means = shown.groupby("poses", sort=False)[numeric].mean().reset_index()
     means.insert(0, "item", "mean")
     return pd.concat([shown, means], ignore_index=True)
+
+
+# ----------------------------------------------------------------------------- completion
+
+
+def completion_test_views(quick: bool, views: int = 2) -> list[dict[str, Any]]:
+    """Partial views the network never trained on: held-out shapes of the training families
+    (seeds from 2000) and the 21 benchmark items (kinds it never saw). Each entry has
+    ``kind``, ``name``, ``view``, ``partial`` and ``complete`` (metres, z up)."""
+    from volec.completion.data import ViewConfig, partial_view, shape_sample
+    from volec.metrics import sample_surface
+    from volec.synth import item_mesh, item_names
+    from volec.synth.families import FAMILIES
+    from volec.synth.shapes import stable_seed
+
+    cfg = ViewConfig()
+    families = list(FAMILIES)[:3] if quick else list(FAMILIES)
+    items = item_names()[:2] if quick else item_names()
+    views = 1 if quick else views
+    out = []
+    for family in families:
+        sample = shape_sample(family, 2000, views, cfg)
+        parts = np.split(sample["partial_points"].astype(float),
+                         np.cumsum(sample["partial_sizes"])[:-1])
+        out += [{"kind": "held-out shape", "name": f"{family}-2000", "view": v,
+                 "partial": p, "complete": sample["complete"]} for v, p in enumerate(parts)]
+    for item in items:
+        mesh = item_mesh(item)
+        rng = np.random.default_rng(stable_seed(f"completion-test-{item}"))
+        complete = sample_surface(mesh, cfg.n_complete_points, seed=1)
+        out += [{"kind": "benchmark item", "name": item, "view": v,
+                 "partial": partial_view(mesh, rng, cfg), "complete": complete}
+                for v in range(views)]
+    return out
+
+
+def completion_experiment(checkpoint: Path, root: Path, quick: bool) -> pd.DataFrame:
+    """Chamfer distances (L1 in mm, L2 in mm^2) to the complete surface of: the partial view,
+    the mirror baseline (with the support plane), the network's points alone, and the
+    completed cloud (partial + network), per test view; with the network's and the mirror's
+    time. Cached per view in ``root/<checkpoint digest>/``."""
+    import hashlib
+
+    from volec.completion.complete import CompletionConfig, complete_cloud
+    from volec.completion.mirror import mirror_complete
+    from volec.completion.train import load_checkpoint
+    from volec.metrics import chamfer_distance
+    from volec.pointcloud import PointCloud
+
+    digest = hashlib.sha256(Path(checkpoint).read_bytes()).hexdigest()[:12]
+    model, _ = load_checkpoint(checkpoint)
+    rows = []
+    for view in completion_test_views(quick):
+
+        def run(view: dict[str, Any] = view) -> dict[str, Any]:
+            partial, complete = view["partial"], view["complete"]
+            row: dict[str, Any] = {k: view[k] for k in ("kind", "name", "view")}
+            row["partial_points"] = len(partial)
+            start = time.perf_counter()
+            mirrored = mirror_complete(partial, up=np.array([0.0, 0.0, 1.0]))
+            row["mirror_s"] = time.perf_counter() - start
+            start = time.perf_counter()
+            done = complete_cloud(PointCloud(partial), model, CompletionConfig())
+            row["network_s"] = time.perf_counter() - start
+            clouds = {"partial": partial, "mirror": mirrored, "network": done.predicted_xyz,
+                      "completed": done.cloud.xyz}
+            for name, xyz in clouds.items():
+                l1, l2 = chamfer_distance(xyz, complete)
+                row[f"cd_l1_{name}_mm"] = l1 * 1e3
+                row[f"cd_l2_{name}_mm2"] = l2 * 1e6
+            return row
+
+        cache = Path(root) / digest / f"{view['name']}-{view['view']}.json"
+        rows.append(cached_row(cache, {"checkpoint": digest}, run))
+    return pd.DataFrame(rows)
+
+
+def completion_table(raw: pd.DataFrame) -> pd.DataFrame:
+    """Mean Chamfer distances and times per test set, and each method's change against the
+    partial input in percent (negative: closer to the complete shape)."""
+    methods = ["partial", "mirror", "network", "completed"]
+    rows = []
+    for kind, group in raw.groupby("kind", sort=False):
+        row: dict[str, Any] = {"test set": kind, "views": len(group)}
+        for m in methods:
+            row[f"CD-L1 {m} (mm)"] = group[f"cd_l1_{m}_mm"].mean()
+        for m in methods:
+            row[f"CD-L2 {m} (mm2)"] = group[f"cd_l2_{m}_mm2"].mean()
+        for m in methods[1:]:
+            row[f"CD-L1 {m} vs partial (%)"] = (row[f"CD-L1 {m} (mm)"]
+                                                / row["CD-L1 partial (mm)"] - 1) * 100
+        row["network s / cloud"] = group["network_s"].mean()
+        row["mirror s / cloud"] = group["mirror_s"].mean()
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def completion_examples(checkpoint: Path, names: list[str], quick: bool
+                        ) -> dict[str, dict[str, np.ndarray]]:
+    """For the first test view of each named shape or item: its partial cloud, the mirror
+    baseline, the network's completed cloud and the complete surface samples (metres)."""
+    from volec.completion.complete import CompletionConfig, complete_cloud
+    from volec.completion.mirror import mirror_complete
+    from volec.completion.train import load_checkpoint
+    from volec.pointcloud import PointCloud
+
+    model, _ = load_checkpoint(checkpoint)
+    chosen = {v["name"]: v for v in completion_test_views(quick) if v["view"] == 0}
+    missing = [n for n in names if n not in chosen]
+    if missing:
+        raise KeyError(f"not in the test views: {', '.join(missing)}")
+    out = {}
+    for name in names:
+        partial = chosen[name]["partial"]
+        done = complete_cloud(PointCloud(partial), model, CompletionConfig())
+        out[name] = {"partial": partial,
+                     "mirror": mirror_complete(partial, up=np.array([0.0, 0.0, 1.0])),
+                     "network": done.cloud.xyz, "complete": chosen[name]["complete"]}
+    return out

@@ -12,8 +12,10 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
+import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
+import pandas as pd
 import trimesh
 from matplotlib.figure import Figure
 
@@ -117,6 +119,48 @@ def geometry_panels(
     the same viewpoint."""
     images = [render_geometry(g, eye, target, up, size_px) for g in panels.values()]
     return image_grid(images, list(panels), ncols=len(images), size_in=4.0)
+
+
+def cloud_grid(rows: dict[str, dict[str, np.ndarray]], elevation_deg: float = -20.0,
+               size_px: tuple[int, int] = (300, 240)) -> Figure:
+    """A grid of point-cloud pictures: one row per entry of ``rows`` (name -> column name ->
+    (N, 3) points, z up), each cloud seen from the same side, ``elevation_deg`` above the
+    horizon (negative: from below, where completion has to fill in)."""
+    colours = ["#4477aa", "#ee6677", "#228833", "#999999", "#ccbb44"]
+    images, titles = [], []
+    for name, columns in rows.items():
+        reference = next(iter(columns.values()))
+        centre = reference.mean(axis=0)
+        radius = float(np.linalg.norm(reference - centre, axis=1).max())
+        e = np.radians(elevation_deg)
+        eye = centre + 4.2 * radius * np.array([np.cos(e), -0.3 * np.cos(e), np.sin(e)])
+        for k, (column, xyz) in enumerate(columns.items()):
+            rgb = np.tile(np.array(matplotlib.colors.to_rgb(colours[k % len(colours)])) * 255,
+                          (len(xyz), 1)).astype(np.uint8)
+            images.append(render_geometry(PointCloud(xyz, rgb), eye, centre, [0, 0, 1], size_px))
+            titles.append(f"{name}: {column}")
+    ncols = len(next(iter(rows.values())))
+    return image_grid(images, titles, ncols=ncols, size_in=2.8)
+
+
+def loss_curves(log: pd.DataFrame) -> Figure:
+    """Training loss (sum over stages) and the final stage's Chamfer-L1 per step, smoothed,
+    with the validation Chamfer-L1 of the network and of the partial inputs."""
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 3.6))
+    window = max(1, len(log) // 100)
+    left.plot(log["step"], log["loss"].rolling(window, min_periods=1).mean(), lw=1)
+    left.set(xlabel="step", ylabel="loss (sum of stage CD-L1)", yscale="log",
+             title="training loss")
+    right.plot(log["step"], log["cd_l1_final"].rolling(window, min_periods=1).mean(), lw=1,
+               label="training batch, final stage")
+    val = log.dropna(subset=["val_cd_l1"])
+    right.plot(val["step"], val["val_cd_l1"], "o-", ms=3, label="validation, network")
+    right.plot(val["step"], val["val_cd_l1_partial"], "--", label="validation, partial input")
+    right.set(xlabel="step", ylabel="CD-L1 (normalized units)", yscale="log",
+              title="Chamfer distance")
+    right.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
 
 
 def distance_histogram(distances_mm: dict[str, np.ndarray], limit_mm: float = 5.0) -> Figure:

@@ -42,7 +42,7 @@ def test_chamfer_matches_a_direct_computation_and_its_gradient():
     (g_direct,) = torch.autograd.grad(direct, a)
     ours = chamfer_l1(a, b)
     (g_ours,) = torch.autograd.grad(ours, a)
-    assert float(ours) == pytest.approx(float(direct), rel=1e-10)
+    assert float(ours.detach()) == pytest.approx(float(direct.detach()), rel=1e-10)
     torch.testing.assert_close(g_ours, g_direct)
     assert float(chamfer_l1(b, b)) == 0.0
 
@@ -53,15 +53,14 @@ def test_farthest_point_sampling_spreads_out():
     assert idx == [0, 100, 50]
 
 
-def test_two_step_cpu_training_smoke(tmp_path):
-    from volec.completion.train import PRESETS as TRAIN_PRESETS
-    from volec.completion.train import load_checkpoint, train
+def test_two_step_cpu_training_smoke(smoke_checkpoint):
+    from volec.completion.train import load_checkpoint
 
-    ckpt = tmp_path / "smoke.pt"
-    result = train(TRAIN_PRESETS["smoke"], ckpt, tmp_path / "data", progress=False)
-    assert result["steps"] == 2 and np.isfinite(result["best_val_cd_l1"])
-    lines = (tmp_path / "smoke.csv").read_text().splitlines()
+    lines = smoke_checkpoint.with_suffix(".csv").read_text().splitlines()
     assert lines[0].startswith("step,loss") and len(lines) == 3
-    model, meta = load_checkpoint(ckpt)
-    assert meta["info"]["val_cd_l1"] == pytest.approx(result["best_val_cd_l1"])
+    rows = [line.split(",") for line in lines[1:]]
+    assert all(np.isfinite(float(r[1])) for r in rows)
+    model, meta = load_checkpoint(smoke_checkpoint)
+    assert meta["info"]["step"] in (1, 2) and np.isfinite(meta["info"]["val_cd_l1"])
     assert model.cfg == PRESETS["cpu"]
+    assert meta["train_config"]["steps"] == 2

@@ -178,8 +178,8 @@ def train(cfg: TrainConfig, checkpoint: Path, data_dir: Path, progress: bool = T
         optimiser.zero_grad()
         loss.backward()
         optimiser.step()
-        row: dict[str, Any] = {"step": step + 1, "loss": float(loss),
-                               "cd_l1_final": float(per_stage[-1]),
+        row: dict[str, Any] = {"step": step + 1, "loss": float(loss.detach()),
+                               "cd_l1_final": float(per_stage[-1].detach()),
                                "lr": learning_rate(cfg, step),
                                "elapsed_s": round(time.perf_counter() - start, 2)}
         last = step + 1 == cfg.steps

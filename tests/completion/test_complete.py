@@ -1,0 +1,74 @@
+"""Completing a metric cloud: the exact inverse transform, and `volec complete`."""
+
+
+import numpy as np
+import torch
+
+from volec.cli import main
+from volec.completion.complete import CompletionConfig, complete_cloud
+from volec.completion.model import ModelConfig
+from volec.geometry import rotvec_to_matrix
+from volec.pointcloud import PointCloud, read_ply, write_ply
+
+
+class _Identity(torch.nn.Module):
+    """Returns its input as the final stage: the completed points must be the partial's."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.cfg = ModelConfig(n_input=256)
+        self.dummy = torch.nn.Parameter(torch.zeros(1))
+
+    def forward(self, x):
+        return [x]
+
+
+def _cap(seed: int = 0, n: int = 3000) -> np.ndarray:
+    """The upper part of a 4 cm sphere, rotated and moved somewhere in a room."""
+    rng = np.random.default_rng(seed)
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d = d[d[:, 2] > -0.3] * 0.04
+    return d @ rotvec_to_matrix(np.array([0.2, -0.4, 1.0])).T + [0.5, -0.3, 1.2]
+
+
+def test_the_prediction_returns_to_the_input_frame_exactly():
+    partial = _cap()
+    result = complete_cloud(PointCloud(partial), _Identity(), CompletionConfig())
+    # every predicted point is a partial point, mapped there and back (float32 in between)
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(partial).query(result.predicted_xyz)
+    assert d.max() < 1e-7 and len(result.predicted_xyz) > 200
+    assert len(result.cloud) == len(partial) + len(result.predicted_xyz)
+    np.testing.assert_array_equal(result.cloud.xyz[: len(partial)], partial)
+
+
+def test_volec_complete_writes_a_cloud_in_the_input_frame(tmp_path, smoke_checkpoint, capsys):
+    partial = _cap()
+    source = write_ply(PointCloud(partial), tmp_path / "partial.ply")
+    out = tmp_path / "done.ply"
+    args = ["complete", str(source), "--out", str(out), "--checkpoint", str(smoke_checkpoint)]
+    assert main(args) == 0
+    done = read_ply(out)
+    assert len(done) > len(partial)
+    np.testing.assert_allclose(done.xyz[: len(partial)], partial, atol=1e-12)
+    # predictions lie around the item, not somewhere else: within three of its radii
+    centre = partial.mean(axis=0)
+    assert np.linalg.norm(done.xyz - centre, axis=1).max() < 3 * 0.04 * 2
+    # an existing output is kept unless --overwrite; the input is never the output
+    assert main(args) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert main(args + ["--overwrite"]) == 0
+    assert main(["complete", str(source), "--out", str(source), "--overwrite"]) == 2
+
+
+def test_volec_complete_errors_are_clear(tmp_path, capsys):
+    few = write_ply(PointCloud(_cap(n=40)), tmp_path / "few.ply")
+    missing = tmp_path / "none.pt"
+    assert main(["complete", str(few), "--out", str(tmp_path / "o.ply"),
+                 "--checkpoint", str(missing)]) == 2
+    assert "make retrain" in capsys.readouterr().err
+    assert main(["complete", str(tmp_path / "absent.ply"), "--out", str(tmp_path / "o.ply")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert not (tmp_path / "o.ply").exists()
