@@ -216,3 +216,33 @@ def test_intrinsics_scaling_keeps_pixel_centres():
     half = intr.scaled(0.5)
     assert (half.width, half.height, half.fx) == (320, 240, 250.0)
     assert (half.cx, half.cy) == (159.5, 119.5)
+
+
+def test_projection_with_distortion_inverts_opencv_undistortion():
+    import cv2
+
+    from volec.capture import Intrinsics
+
+    intr = Intrinsics(640, 480, 500.0, 505.0, 319.0, 241.0, "OPENCV", (0.1, -0.05, 0.001, 0.002))
+    rng = np.random.default_rng(0)
+    cam = np.c_[rng.uniform(-0.2, 0.2, (50, 2)), rng.uniform(0.5, 1.0, 50)]
+    uv = intr.project(cam)
+    undone = cv2.undistortPoints(uv.reshape(-1, 1, 2), intr.K, np.array(intr.distortion))
+    np.testing.assert_allclose(undone.reshape(-1, 2), cam[:, :2] / cam[:, 2:], atol=1e-6)
+    pinhole = Intrinsics(640, 480, 500.0, 505.0, 319.0, 241.0)
+    expected = cam[:, :2] / cam[:, 2:] * [500.0, 505.0] + [319.0, 241.0]
+    np.testing.assert_allclose(pinhole.project(cam), expected, atol=1e-12)
+    assert np.isnan(pinhole.project(np.array([[0.0, 0.0, -1.0]]))).all()
+
+
+def test_a_mask_of_the_wrong_size_is_a_clear_error(tmp_path):
+    from PIL import Image
+
+    from volec.capture import Frame, Intrinsics, read_mask
+    from volec.errors import CaptureError
+
+    Image.fromarray(np.zeros((10, 12), np.uint8)).save(tmp_path / "m.png")
+    frame = Frame("f", tmp_path / "f.png", Intrinsics(24, 20, 10.0, 10.0, 11.5, 9.5),
+                  np.eye(4), mask_path=tmp_path / "m.png")
+    with pytest.raises(CaptureError, match="must match"):
+        read_mask(frame)

@@ -44,6 +44,10 @@ class CompletionConfig:
 
     merge_partial: bool = True
     """The completed cloud is the partial plus the predicted points (else predicted only)."""
+    missing_only_spacings: float = 0.0
+    """When merging, keep only predicted points farther than this many point spacings (the
+    partial's median nearest-neighbour distance) from the partial: the network then only
+    fills what was missing. 0 keeps every predicted point."""
     outlier_neighbours: int = 16
     """Statistical outlier removal on the predicted points: neighbours considered..."""
     outlier_std_ratio: float = 2.0
@@ -89,6 +93,14 @@ def complete_cloud(partial: PointCloud, model: SymmCompletion,
         out = model(torch.from_numpy(x[None]).float().to(device))[-1][0].cpu().numpy()
     predicted = remove_statistical_outliers(norm.invert(out.astype(float)),
                                             cfg.outlier_neighbours, cfg.outlier_std_ratio)
+    if cfg.merge_partial and cfg.missing_only_spacings > 0:
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(partial.xyz)
+        spacing = float(np.median(tree.query(partial.xyz[:: max(1, len(partial) // 2000)],
+                                             k=2)[0][:, 1]))
+        far = tree.query(predicted)[0] > cfg.missing_only_spacings * spacing
+        predicted = predicted[far]
     grey = np.tile(np.array(PREDICTED_RGB, np.uint8), (len(predicted), 1))
     if cfg.merge_partial:
         rgb = None if partial.rgb is None else np.concatenate([partial.rgb, grey])
