@@ -84,6 +84,9 @@ def write_ply(cloud: PointCloud, path: Path) -> Path:
     try:
         if not o3d.io.write_point_cloud(tmp, to_open3d(cloud), write_ascii=False):
             raise VolecError(f"open3d could not write {path}")
+        from volec.io import _file_mode
+
+        os.chmod(tmp, _file_mode())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
