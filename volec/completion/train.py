@@ -193,7 +193,7 @@ def train(cfg: TrainConfig, checkpoint: Path, data_dir: Path, progress: bool = T
                     "val_cd_l1_partial": row["val_cd_l1_partial"],
                     "train_views": len(train_data), "val_views": len(val_data),
                     "elapsed_s": row["elapsed_s"]})
-            bar.set_postfix(loss=f"{float(loss):.4f}", val=f"{row['val_cd_l1']:.4f}")
+            bar.set_postfix(loss=f"{loss.item():.4f}", val=f"{row['val_cd_l1']:.4f}")
         log_rows.append(row)
         if (step + 1) % 50 == 0 or last or out_of_time or "val_cd_l1" in row:
             _write_log(log_path, log_rows)
