@@ -125,6 +125,26 @@ def _cmd_complete(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_estimate(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from volec.capture import read_capture
+    from volec.estimate import PRESETS, run_estimate
+
+    capture = read_capture(Path(args.capture), on_missing="skip" if args.skip_missing else "error")
+    cfg = replace(PRESETS[args.preset], use_completion=not args.no_completion,
+                  checkpoint=args.checkpoint or "")
+    result = run_estimate(capture, Path(args.out), cfg, overwrite=args.overwrite,
+                          progress=not args.quiet)
+    print(f"volume: {result['volume_ml']:.1f} mL "
+          f"({'with' if result['completion_used'] else 'without'} completion)")
+    for warning in result["warnings"]:
+        print(f"warning: {warning}")
+    print(f"result: {Path(args.out) / 'result.json'}; mesh: {Path(args.out) / 'mesh.ply'}, "
+          f"mesh.glb; report: {Path(args.out) / 'report.md'}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``volec`` command."""
     parser = argparse.ArgumentParser(
@@ -209,6 +229,28 @@ def build_parser() -> argparse.ArgumentParser:
                           help="write only the predicted points, not the partial's")
     complete.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
     complete.set_defaults(func=_cmd_complete)
+
+    estimate = sub.add_parser(
+        "estimate",
+        help="the whole pipeline: volume in mL, a closed mesh and a report from a capture",
+        description="SfM, dense stereo, masking, completion, meshing and volume. OUTDIR is "
+        "also the work folder: a re-run reuses the finished stages. Writes OUTDIR/result.json "
+        "(volume_ml, warnings, stage times), mesh.ply, mesh.glb, the clouds of each stage "
+        "and report.md; the capture is only read.",
+    )
+    estimate.add_argument("capture", help="capture folder (transforms.json with mask_path)")
+    estimate.add_argument("--out", required=True, type=Path, help="output folder")
+    estimate.add_argument("--no-completion", action="store_true",
+                          help="mesh the masked cloud as it is (the VolE-style baseline)")
+    estimate.add_argument("--preset", default="default", choices=["default", "fast"],
+                          help="fast: coarser dense stereo and meshing")
+    estimate.add_argument("--checkpoint", help="a completion checkpoint other than the shipped one")
+    estimate.add_argument("--skip-missing", action="store_true",
+                          help="skip frames whose image file is missing (default: fail)")
+    estimate.add_argument("--overwrite", action="store_true",
+                          help="redo every stage, replacing an earlier result in OUTDIR")
+    estimate.add_argument("--quiet", action="store_true", help="no progress display")
+    estimate.set_defaults(func=_cmd_estimate)
     return parser
 
 

@@ -100,18 +100,23 @@ def ensure_masking(capture: Capture, sfm: SfmResult, dense: DenseResult, work_di
     return result, True
 
 
-def dense_and_mask(capture: Capture, work_dir: Path, sfm_cfg: SfmConfig | None = None,
-                   dense_cfg: DenseConfig | None = None, mask_cfg: MaskingConfig | None = None,
-                   overwrite: bool = False, progress: bool = True
-                   ) -> tuple[SfmResult, DenseResult, MaskingResult]:
-    """SfM (reused when finished), dense stereo and masking in ``work_dir``. A capture
-    without a mask for every frame is refused before any work is done."""
+def require_masks(capture: Capture) -> None:
+    """Raise :class:`MaskingError` unless every frame of ``capture`` has a food mask."""
     if not capture.has_masks:
         missing = [f.name for f in capture.frames if f.mask_path is None]
         raise MaskingError(
             f"{len(missing)} of {len(capture)} frames have no food mask (first: {missing[0]}); "
             "masking needs a mask_path for every frame in transforms.json"
         )
+
+
+def dense_and_mask(capture: Capture, work_dir: Path, sfm_cfg: SfmConfig | None = None,
+                   dense_cfg: DenseConfig | None = None, mask_cfg: MaskingConfig | None = None,
+                   overwrite: bool = False, progress: bool = True
+                   ) -> tuple[SfmResult, DenseResult, MaskingResult]:
+    """SfM (reused when finished), dense stereo and masking in ``work_dir``. A capture
+    without a mask for every frame is refused before any work is done."""
+    require_masks(capture)
     sfm, redone = ensure_sfm(capture, work_dir, sfm_cfg, overwrite)
     dense, redone = ensure_dense(capture, sfm, work_dir, dense_cfg, overwrite or redone,
                                  progress)
