@@ -87,6 +87,9 @@ class EstimateConfig:
     meshing: MeshingConfig = field(default_factory=MeshingConfig)
     min_registered_fraction: float = 0.8
     """Fewer registered frames than this fraction is a warning in the result."""
+    min_orbit_deg: float = 180.0
+    """Cameras spanning less azimuth than this around the food is a warning: the unseen side
+    is then a guess (a 100-degree arc over-estimated the cake by a third)."""
 
 
 PRESETS: dict[str, EstimateConfig] = {
@@ -167,6 +170,21 @@ def food_mesh(masked: PointCloud, scene: PointCloud, up: np.ndarray | None,
     meshing_s = time.perf_counter() - start - completion_s
     return FoodMesh(cloud, mesh, volume, support, summary, warnings,
                     {"completion_s": round(completion_s, 2), "meshing_s": round(meshing_s, 2)})
+
+
+def orbit_coverage_deg(camera_centres: np.ndarray, target: np.ndarray, up: np.ndarray) -> float:
+    """How many degrees of azimuth around ``target`` (about the axis ``up``) the cameras span:
+    360 minus the widest gap between neighbouring camera azimuths."""
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    side = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
+    side /= np.linalg.norm(side)
+    other = np.cross(up, side)
+    rel = np.asarray(camera_centres, float) - target
+    azimuth = np.sort(np.degrees(np.arctan2(rel @ other, rel @ side)) % 360.0)
+    if len(azimuth) < 2:
+        return 0.0
+    gaps = np.diff(np.concatenate([azimuth, azimuth[:1] + 360.0]))
+    return float(360.0 - gaps.max())
 
 
 def _refuse_other_result(out_dir: Path, cfg: EstimateConfig, overwrite: bool) -> None:
@@ -309,6 +327,12 @@ def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = N
     registered = int(sfm.summary["registered"])
     if registered < cfg.min_registered_fraction * len(capture):
         warnings.append(f"only {registered} of {len(capture)} frames were registered by SfM")
+    centres = sfm.T_world_from_cam[sfm.registered][:, :3, 3]
+    coverage = orbit_coverage_deg(centres, result.mesh.mesh.centroid, view_up)
+    if coverage < cfg.min_orbit_deg:
+        warnings.append(f"the cameras span only {coverage:.0f} degrees around the food "
+                        f"(less than {cfg.min_orbit_deg:.0f}): its unseen side is a guess and "
+                        "the volume is less certain")
     if model is None:
         warnings.append("completion was off: the unseen underside is closed by the support "
                         "plane and Poisson alone (the VolE-style baseline)")
@@ -318,6 +342,7 @@ def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = N
         "volume_ml": result.volume_ml,
         "completion_used": model is not None,
         "frames": {"total": len(capture), "registered": registered},
+        "orbit_coverage_deg": round(coverage, 1),
         "stage_seconds": seconds,
         "stages_reused": reused,
         "support_plane": None if result.support is None else result.support.record(),

@@ -1,0 +1,81 @@
+"""volec estimate end to end on a small synthetic capture, and its refusals."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+import trimesh
+
+from volec.cli import main
+from volec.estimate import orbit_coverage_deg
+from volec.pointcloud import read_ply
+from volec.synth import load_ground_truth_mesh
+from volec.volume import volume_ml
+
+
+def _snapshot(folder):
+    return {p: (p.stat().st_size, p.stat().st_mtime_ns) for p in sorted(folder.rglob("*"))}
+
+
+def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys):
+    out = tmp_path / "estimate"
+    shutil.copytree(small_capture / "work" / "sfm", out / "sfm")  # SfM is reused
+    capture = small_capture / "capture"
+    before = _snapshot(capture)
+    assert main(["estimate", str(capture), "--out", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert _snapshot(capture) == before  # the capture is only read
+
+    result = json.loads((out / "result.json").read_text())
+    assert result["completion_used"] and "sfm" in result["stages_reused"]
+    assert f"{result['volume_ml']:.1f} mL" in printed
+    assert {"sfm_s", "dense_s", "masking_s", "completion_s", "meshing_s"} <= set(
+        result["stage_seconds"])
+    assert result["frames"] == {"total": 16, "registered": 16}
+    for name in ("scene.ply", "food_masked.ply", "food_completed.ply", "report.md",
+                 "report/stages_above.png"):
+        assert (out / name).stat().st_size > 0
+    # the mesh a standard tool opens is closed and holds the volume reported
+    mesh = trimesh.load(out / "mesh.ply")
+    assert volume_ml(mesh) == pytest.approx(result["volume_ml"], rel=1e-6)
+    glb = trimesh.load(out / "mesh.glb", force="mesh")
+    assert glb.volume * 1e6 == pytest.approx(result["volume_ml"], rel=1e-4)
+    # the mesh passes through what the cameras saw ...
+    masked = read_ply(out / "food_masked.ply")
+    assert np.median(np.abs(trimesh.proximity.signed_distance(mesh, masked.xyz[::20]))) < 1e-3
+    # ... but 16 frames over 100 degrees leave half the cake unseen: flagged, and only
+    # roughly right
+    assert 90 < result["orbit_coverage_deg"] < 110
+    assert any("span only" in w for w in result["warnings"])
+    truth = load_ground_truth_mesh(small_capture).volume * 1e6
+    assert 0.7 * truth < result["volume_ml"] < 1.5 * truth
+
+    # other settings into the same folder are refused, and nothing is touched
+    stages = _snapshot(out)
+    assert main(["estimate", str(capture), "--out", str(out), "--no-completion",
+                 "--quiet"]) == 2
+    assert "other settings" in capsys.readouterr().err
+    assert _snapshot(out) == stages
+
+
+def test_orbit_coverage_of_cameras_on_arcs():
+    angles = np.radians(np.arange(0, 100, 5.0))
+    arc = np.c_[np.cos(angles), np.sin(angles), np.full_like(angles, 0.5)]
+    assert orbit_coverage_deg(arc, np.zeros(3), np.array([0.0, 0.0, 1.0])) == pytest.approx(95)
+    full = np.radians(np.arange(0, 360, 10.0))
+    ring = np.c_[np.cos(full), np.sin(full), np.zeros_like(full)]
+    assert orbit_coverage_deg(ring, np.zeros(3), np.array([0.0, 0.0, 1.0])) == pytest.approx(350)
+
+
+def test_volec_estimate_refuses_bad_input(small_capture, tmp_path, capsys):
+    assert main(["estimate", str(tmp_path / "nowhere"), "--out", str(tmp_path / "o")]) == 2
+    assert "volec: error" in capsys.readouterr().err
+    capture = small_capture / "capture"
+    before = _snapshot(small_capture)
+    assert main(["estimate", str(capture), "--out", str(capture / "out"), "--quiet"]) == 2
+    assert "inside the capture" in capsys.readouterr().err
+    assert _snapshot(small_capture) == before
+    assert not (tmp_path / "o").exists()
