@@ -30,13 +30,20 @@ def test_notebook_is_thin_and_committed_without_outputs(path):
         assert not defs, f"{path.name}: move definitions into volec"
 
 
+@pytest.fixture(scope="session")
+def notebook_data(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One data folder for every notebook of the session: like `make paper`, a later notebook
+    reuses what an earlier one computed (05 reads 04's cached results)."""
+    return tmp_path_factory.mktemp("notebook-data")
+
+
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
-def test_notebook_runs_in_quick_mode(path, tmp_path, monkeypatch):
+def test_notebook_runs_in_quick_mode(path, tmp_path, notebook_data, monkeypatch):
     papermill = pytest.importorskip("papermill")
     from jupyter_client.kernelspec import KernelSpecManager
 
     monkeypatch.setenv("VOLEC_FIGURES_DIR", str(tmp_path / "figures"))
-    monkeypatch.setenv("VOLEC_DATA_DIR", str(tmp_path / "data"))
+    monkeypatch.setenv("VOLEC_DATA_DIR", str(notebook_data))
     monkeypatch.setenv("MPLBACKEND", "Agg")
     kernel = "volec" if "volec" in KernelSpecManager().find_kernel_specs() else "python3"
     papermill.execute_notebook(
