@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from tests.files import snapshot
 from volec.cli import main
 from volec.estimate import orbit_coverage_deg
 from volec.pointcloud import read_ply
@@ -16,18 +17,14 @@ from volec.synth import load_ground_truth_mesh
 from volec.volume import volume_ml
 
 
-def _snapshot(folder):
-    return {p: (p.stat().st_size, p.stat().st_mtime_ns) for p in sorted(folder.rglob("*"))}
-
-
 def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys):
     out = tmp_path / "estimate"
     shutil.copytree(small_capture / "work" / "sfm", out / "sfm")  # SfM is reused
     capture = small_capture / "capture"
-    before = _snapshot(capture)
+    before = snapshot(capture)
     assert main(["estimate", str(capture), "--out", str(out), "--quiet"]) == 0
     printed = capsys.readouterr().out
-    assert _snapshot(capture) == before  # the capture is only read
+    assert snapshot(capture) == before  # the capture is only read
 
     result = json.loads((out / "result.json").read_text())
     assert result["completion_used"] and "sfm" in result["stages_reused"]
@@ -54,11 +51,11 @@ def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys
     assert 0.7 * truth < result["volume_ml"] < 1.5 * truth
 
     # other settings into the same folder are refused, and nothing is touched
-    stages = _snapshot(out)
+    stages = snapshot(out)
     assert main(["estimate", str(capture), "--out", str(out), "--no-completion",
                  "--quiet"]) == 2
     assert "other settings" in capsys.readouterr().err
-    assert _snapshot(out) == stages
+    assert snapshot(out) == stages
 
 
 def test_orbit_coverage_of_cameras_on_arcs():
@@ -74,8 +71,8 @@ def test_volec_estimate_refuses_bad_input(small_capture, tmp_path, capsys):
     assert main(["estimate", str(tmp_path / "nowhere"), "--out", str(tmp_path / "o")]) == 2
     assert "volec: error" in capsys.readouterr().err
     capture = small_capture / "capture"
-    before = _snapshot(small_capture)
+    before = snapshot(small_capture)
     assert main(["estimate", str(capture), "--out", str(capture / "out"), "--quiet"]) == 2
     assert "inside the capture" in capsys.readouterr().err
-    assert _snapshot(small_capture) == before
+    assert snapshot(small_capture) == before
     assert not (tmp_path / "o").exists()

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import json
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from tests.files import snapshot
 from volec.cli import main
 from volec.dense import DenseConfig
 from volec.errors import OutputExistsError
@@ -28,20 +28,17 @@ def test_a_stage_is_reused_only_with_the_same_settings(tmp_path):
         reusable(record, same, DenseConfig(n_depth_planes=32), overwrite=False)
 
 
-def _snapshot(folder: Path) -> dict[str, tuple[int, int]]:
-    return {str(p.relative_to(folder)): (p.stat().st_size, p.stat().st_mtime_ns)
-            for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
 def test_volec_dense_end_to_end(small_capture, small_result, tmp_path, capsys):
     work = tmp_path / "work"
     shutil.copytree(small_capture / "work" / "sfm", work / "sfm")  # SfM is reused
     capture = small_capture / "capture"
-    before = _snapshot(capture)
+    before = snapshot(capture)
     assert main(["dense", str(capture), "--out", str(work), "--quiet"]) == 0
     out = capsys.readouterr().out
     assert "food_masked.ply" in out
-    assert _snapshot(capture) == before  # the capture is only read
+    assert snapshot(capture) == before  # the capture is only read
 
     scene, food = read_ply(work / "scene.ply"), read_ply(work / "food_masked.ply")
     report = json.loads((work / "masking.json").read_text())
@@ -58,12 +55,12 @@ def test_volec_dense_end_to_end(small_capture, small_result, tmp_path, capsys):
     assert removed.sum() > 0 and (d_food > 0.004).mean() < 0.25 * removed.mean()
 
     # a second run reuses every stage; other settings are refused, nothing is touched
-    stages = _snapshot(work)
+    stages = snapshot(work)
     assert main(["dense", str(capture), "--out", str(work), "--quiet"]) == 0
-    assert _snapshot(work) == stages
+    assert snapshot(work) == stages
     assert main(["dense", str(capture), "--out", str(work), "--preset", "fast", "--quiet"]) == 2
     assert "other settings" in capsys.readouterr().err
-    assert _snapshot(work) == stages
+    assert snapshot(work) == stages
 
 
 def test_volec_dense_refuses_a_capture_without_masks(tmp_path, capsys):

@@ -172,13 +172,18 @@ def food_mesh(masked: PointCloud, scene: PointCloud, up: np.ndarray | None,
                     {"completion_s": round(completion_s, 2), "meshing_s": round(meshing_s, 2)})
 
 
-def orbit_coverage_deg(camera_centres: np.ndarray, target: np.ndarray, up: np.ndarray) -> float:
-    """How many degrees of azimuth around ``target`` (about the axis ``up``) the cameras span:
-    360 minus the widest gap between neighbouring camera azimuths."""
+def _horizontal_axes(up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors perpendicular to ``up`` and to each other."""
     up = np.asarray(up, float) / np.linalg.norm(up)
     side = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
     side /= np.linalg.norm(side)
-    other = np.cross(up, side)
+    return side, np.cross(up, side)
+
+
+def orbit_coverage_deg(camera_centres: np.ndarray, target: np.ndarray, up: np.ndarray) -> float:
+    """How many degrees of azimuth around ``target`` (about the axis ``up``) the cameras span:
+    360 minus the widest gap between neighbouring camera azimuths."""
+    side, other = _horizontal_axes(up)
     rel = np.asarray(camera_centres, float) - target
     azimuth = np.sort(np.degrees(np.arctan2(rel @ other, rel @ side)) % 360.0)
     if len(azimuth) < 2:
@@ -208,8 +213,7 @@ def _view(target: np.ndarray, up: np.ndarray, radius: float, elevation_deg: floa
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(eye, target, up) looking at ``target`` from ``elevation_deg`` above the horizontal."""
     up = up / np.linalg.norm(up)
-    side = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
-    side /= np.linalg.norm(side)
+    side, _ = _horizontal_axes(up)
     el = np.radians(elevation_deg)
     eye = target + 4.0 * radius * (np.cos(el) * side + np.sin(el) * up)
     return eye, target, up
