@@ -289,7 +289,7 @@ write([
         "from volec.paths import data_dir, figures_dir\n"
         "from volec.synth import item_names, load_truth\n"
         "from volec.tables import write_table\n"
-        "from volec.viz import geometry_panels, save_figure"
+        "from volec.viz import panels_around, save_figure"
     ),
     code(
         'scenario = scenarios(quick)["quick" if quick else "full_orbit"]\n'
@@ -305,12 +305,8 @@ write([
     code(
         "item = items[0] if quick else shown_item\n"
         "panels = qualitative_panels(root, item, scenario)\n"
-        'mesh = panels["true surface"]\n'
         'up = load_truth(root / f"{item}-{scenario.name}")["world_up"]\n'
-        "centre = mesh.bounds.mean(axis=0)\n"
-        "radius = float(mesh.extents.max())\n"
-        "side = [radius * 2.5, -radius * 0.4, radius * 2.5]  # metres, y is up\n"
-        "fig = geometry_panels(panels, eye=centre + side, target=centre, up=up)\n"
+        "fig = panels_around(panels, up, elevation_deg=-8.0)\n"
         'save_figure(fig, figures_dir() / "volume_stages.png")'
     ),
 ], "notebooks/04_meshing_volume.ipynb")
@@ -339,7 +335,7 @@ write([
         "from volec.paths import data_dir, figures_dir\n"
         "from volec.synth import item_names, load_truth\n"
         "from volec.tables import write_table\n"
-        "from volec.viz import geometry_panels, save_figure\n\n"
+        "from volec.viz import panels_around, save_figure\n\n"
         'scenario = scenarios(quick)["quick" if quick else "full_orbit"]\n'
         'items = ["apple"] if quick else item_names()\n'
         'root = data_dir() / "bench-sfm"\n'
@@ -371,12 +367,8 @@ write([
     code(
         "for item in (items if quick else shown):\n"
         "    panels = qualitative_panels(root, item, scenario)\n"
-        '    mesh = panels["true surface"]\n'
         '    up = load_truth(root / f"{item}-{scenario.name}")["world_up"]\n'
-        "    centre = mesh.bounds.mean(axis=0)\n"
-        "    radius = float(mesh.extents.max())\n"
-        "    side = [radius * 2.5, -radius * 0.4, radius * 2.5]  # metres, y is up\n"
-        "    fig = geometry_panels(panels, eye=centre + side, target=centre, up=up)\n"
+        "    fig = panels_around(panels, up, elevation_deg=-8.0)\n"
         '    save_figure(fig, figures_dir() / f"qualitative_{item}.png")'
     ),
 ], "notebooks/05_tables.ipynb")

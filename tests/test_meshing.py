@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import trimesh
 
 from volec.meshing import (
     MeshingConfig,
@@ -97,6 +96,3 @@ def test_too_few_points_are_refused():
     with pytest.raises(MeshingError, match="at least"):
         mesh_cloud(_sphere_cloud(0.03, 100), None, FAST)
 
-
-def test_box_mesh_volume_is_exact():
-    assert volume_ml(trimesh.creation.box((0.1, 0.05, 0.02))) == pytest.approx(100.0)

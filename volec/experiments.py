@@ -8,6 +8,7 @@ missing; the captures themselves are generated on first use.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 from collections.abc import Callable
@@ -225,6 +226,11 @@ def dense_table(raw: pd.DataFrame) -> pd.DataFrame:
 # ----------------------------------------------------------------------------- completion
 
 
+def _file_digest(path: Path) -> str:
+    """A short content digest of a file (cache keys of results that depend on it)."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]
+
+
 def completion_test_views(quick: bool, views: int = 2) -> list[dict[str, Any]]:
     """Partial views the network never trained on: held-out shapes of the training families
     (seeds from 2000) and the 21 benchmark items (kinds it never saw). Each entry has
@@ -261,15 +267,13 @@ def completion_experiment(checkpoint: Path, root: Path, quick: bool) -> pd.DataF
     the mirror baseline (with the support plane), the network's points alone, and the
     completed cloud (partial + network), per test view; with the network's and the mirror's
     time. Cached per view in ``root/<checkpoint digest>/``."""
-    import hashlib
-
     from volec.completion.complete import CompletionConfig, complete_cloud
     from volec.completion.mirror import mirror_complete
     from volec.completion.train import load_checkpoint
     from volec.metrics import chamfer_distance
     from volec.pointcloud import PointCloud
 
-    digest = hashlib.sha256(Path(checkpoint).read_bytes()).hexdigest()[:12]
+    digest = _file_digest(checkpoint)
     model, _ = load_checkpoint(checkpoint)
     rows = []
     for view in completion_test_views(quick):
@@ -344,12 +348,6 @@ def completion_examples(checkpoint: Path, names: list[str], quick: bool
 # ----------------------------------------------------------------------------- volume
 
 
-def _file_digest(path: Path) -> str:
-    import hashlib
-
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
-
-
 def volume_experiment(root: Path, items: list[str], scenario: Scenario,
                       cfg: EstimateConfig | None = None, progress: bool = True
                       ) -> pd.DataFrame:
@@ -379,12 +377,8 @@ def volume_experiment(root: Path, items: list[str], scenario: Scenario,
             nonlocal model
             model = model or load_completion_model(cfg)
             capture = read_transforms_json(out / "capture")
-            sfm, dense, _ = dense_and_mask(capture, work, cfg.sfm, cfg.dense, cfg.masking,
-                                           progress=False)
-            start = time.perf_counter()  # masking is timed again: its record has no time
-            masked = mask_cloud(dense.cloud, capture, sfm.T_world_from_cam, sfm.registered,
-                                cfg.masking)
-            masking_s = time.perf_counter() - start
+            sfm, dense, masked = dense_and_mask(capture, work, cfg.sfm, cfg.dense, cfg.masking,
+                                                progress=False)
             truth_mesh = load_ground_truth_mesh(out)
             truth_points = sample_surface(truth_mesh, 20000, seed=0)
             truth = load_truth(out)
@@ -395,7 +389,8 @@ def volume_experiment(root: Path, items: list[str], scenario: Scenario,
                 "gt_ml": float(truth_mesh.volume * 1e6),
                 "sfm_s": float(sum(sfm.summary["timings_s"].values())),
                 "dense_s": float(sum(dense.summary["timings_s"].values())),
-                "masking_s": masking_s,
+                # stage records made before masking timed itself have no time
+                "masking_s": masked.report.get("seconds", np.nan),
             }
             for tag, net in (("no_completion", None), ("completion", model)):
                 made = food_mesh(masked.cloud, dense.cloud, up, net, cfg)

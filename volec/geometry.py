@@ -84,3 +84,11 @@ def rotation_angle_deg(R_a: np.ndarray, R_b: np.ndarray) -> float:
 def rotvec_to_matrix(rotvec: np.ndarray) -> np.ndarray:
     """Axis-angle vector (radians) -> 3x3 rotation matrix."""
     return Rotation.from_rotvec(rotvec).as_matrix()
+
+
+def horizontal_axes(up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors perpendicular to ``up`` and to each other."""
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    side = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
+    side /= np.linalg.norm(side)
+    return side, np.cross(up, side)

@@ -16,6 +16,7 @@ grown by a few pixels for the same reason.
 from __future__ import annotations
 
 import logging
+import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -91,18 +92,24 @@ def mask_votes(cloud: PointCloud, capture: Capture, T_world_from_cam: np.ndarray
     return seen, inside
 
 
+def require_masks(capture: Capture) -> None:
+    """Raise :class:`MaskingError` unless every frame of ``capture`` has a food mask."""
+    if not capture.has_masks:
+        missing = [f.name for f in capture.frames if f.mask_path is None]
+        raise MaskingError(
+            f"{len(missing)} of {len(capture)} frames have no food mask (first: {missing[0]}); "
+            "masking needs a mask_path for every frame in transforms.json"
+        )
+
+
 def mask_cloud(cloud: PointCloud, capture: Capture, T_world_from_cam: np.ndarray,
                registered: np.ndarray, cfg: MaskingConfig | None = None) -> MaskingResult:
     """Keep the points of ``cloud`` that the food masks of the registered frames agree on."""
     cfg = cfg or MaskingConfig()
     if not 0.0 < cfg.min_inside_fraction <= 1.0:
         raise ValueError("min_inside_fraction must be in (0, 1]")
-    if not capture.has_masks:
-        missing = [f.name for f in capture.frames if f.mask_path is None]
-        raise MaskingError(
-            f"{len(missing)} frames have no food mask (first: {missing[0]}); masking needs a "
-            "mask_path for every frame in transforms.json"
-        )
+    require_masks(capture)
+    start = time.perf_counter()
     use = np.asarray(registered, bool)
     seen, inside = mask_votes(cloud, capture, T_world_from_cam, use, cfg.mask_dilation_px)
     enough_views = seen >= cfg.min_views
@@ -114,6 +121,7 @@ def mask_cloud(cloud: PointCloud, capture: Capture, T_world_from_cam: np.ndarray
         "removed_too_few_views": int((~enough_views).sum()),
         "removed_outside_mask": int((enough_views & ~food).sum()),
         "kept": int(food.sum()),
+        "seconds": round(time.perf_counter() - start, 2),
         "config": asdict(cfg),
     }
     if not food.any():

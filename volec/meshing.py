@@ -204,6 +204,12 @@ def _poisson(xyz: np.ndarray, normals: np.ndarray, cfg: MeshingConfig):  # -> o3
     return mesh, len(pcd.points)
 
 
+def _grid_axes(lower: np.ndarray, shape: tuple[int, int, int], voxel_m: float
+               ) -> list[np.ndarray]:
+    """The coordinates (metres) of the grid points along each axis."""
+    return [lower[i] + voxel_m * np.arange(shape[i]) for i in range(3)]
+
+
 def signed_distance_grid(mesh: trimesh.Trimesh, lower: np.ndarray, shape: tuple[int, int, int],
                          voxel_m: float, rays: int = 3) -> np.ndarray:
     """Signed distance (negative inside) of ``mesh`` at the grid points
@@ -213,8 +219,8 @@ def signed_distance_grid(mesh: trimesh.Trimesh, lower: np.ndarray, shape: tuple[
 
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(np.asarray(mesh.vertices, np.float32), np.asarray(mesh.faces, np.uint32))
-    axes = [lower[i] + voxel_m * np.arange(shape[i]) for i in range(3)]
-    points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    points = np.stack(np.meshgrid(*_grid_axes(lower, shape, voxel_m), indexing="ij"),
+                      axis=-1).reshape(-1, 3)
     sdf = scene.compute_signed_distance(o3d.core.Tensor(points.astype(np.float32)),
                                         nsamples=rays)
     return sdf.numpy().reshape(shape)
@@ -269,7 +275,7 @@ def mesh_cloud(cloud: PointCloud, support: SupportPlane | None = None,
                                           / cfg.grid_voxel_m) + 1)
     field_m = signed_distance_grid(surface, lower, shape, cfg.grid_voxel_m, cfg.inside_rays)
     if support is not None:
-        axes = [lower[i] + cfg.grid_voxel_m * np.arange(shape[i]) for i in range(3)]
+        axes = _grid_axes(lower, shape, cfg.grid_voxel_m)
         n = np.asarray(support.normal)
         height = (axes[0][:, None, None] * n[0] + axes[1][None, :, None] * n[1]
                   + axes[2][None, None, :] * n[2] + support.offset_m)

@@ -20,10 +20,10 @@ from volec.dense import DenseConfig, DenseResult, load_dense, run_dense, save_de
 from volec.errors import OutputExistsError
 from volec.masking import (
     MaskingConfig,
-    MaskingError,
     MaskingResult,
     load_masking,
     mask_cloud,
+    require_masks,
     save_masking,
 )
 from volec.sfm import SfmConfig, SfmResult, load_sfm, run_sfm
@@ -98,16 +98,6 @@ def ensure_masking(capture: Capture, sfm: SfmResult, dense: DenseResult, work_di
     result = mask_cloud(dense.cloud, capture, sfm.T_world_from_cam, sfm.registered, cfg)
     save_masking(work_dir, result)
     return result, True
-
-
-def require_masks(capture: Capture) -> None:
-    """Raise :class:`MaskingError` unless every frame of ``capture`` has a food mask."""
-    if not capture.has_masks:
-        missing = [f.name for f in capture.frames if f.mask_path is None]
-        raise MaskingError(
-            f"{len(missing)} of {len(capture)} frames have no food mask (first: {missing[0]}); "
-            "masking needs a mask_path for every frame in transforms.json"
-        )
 
 
 def dense_and_mask(capture: Capture, work_dir: Path, sfm_cfg: SfmConfig | None = None,

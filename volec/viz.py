@@ -121,6 +121,27 @@ def geometry_panels(
     return image_grid(images, list(panels), ncols=len(images), size_in=4.0)
 
 
+def panels_around(
+    panels: dict[str, PointCloud | trimesh.Trimesh],
+    up: np.ndarray,
+    elevation_deg: float,
+    size_px: tuple[int, int] = (480, 360),
+) -> Figure:
+    """:func:`geometry_panels` seen from ``elevation_deg`` above the horizontal plane (``up``
+    is the world's up), looking at the centre of the last panel from four of its radii."""
+    from volec.geometry import horizontal_axes
+
+    last = list(panels.values())[-1]
+    points = last.xyz if isinstance(last, PointCloud) else np.asarray(last.vertices)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    target, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    side, _ = horizontal_axes(up)
+    el = np.radians(elevation_deg)
+    eye = target + 4.0 * radius * (np.cos(el) * side + np.sin(el) * up)
+    return geometry_panels(panels, eye, target, up, size_px)
+
+
 def cloud_grid(rows: dict[str, dict[str, np.ndarray]], elevation_deg: float = -20.0,
                size_px: tuple[int, int] = (300, 240)) -> Figure:
     """A grid of point-cloud pictures: one row per entry of ``rows`` (name -> column name ->

@@ -72,3 +72,30 @@ def test_volec_complete_errors_are_clear(tmp_path, capsys):
     assert main(["complete", str(tmp_path / "absent.ply"), "--out", str(tmp_path / "o.ply")]) == 2
     assert "does not exist" in capsys.readouterr().err
     assert not (tmp_path / "o.ply").exists()
+
+
+class _CopyAndShift(torch.nn.Module):
+    """Predicts the input twice: as it is, and shifted 3 units (normalized frame) away."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.cfg = ModelConfig(n_input=256)
+        self.dummy = torch.nn.Parameter(torch.zeros(1))
+
+    def forward(self, x):
+        return [torch.cat([x, x + torch.tensor([0.0, 0.0, 3.0])], dim=1)]
+
+
+def test_missing_only_keeps_the_predicted_points_away_from_the_partial():
+    partial = _cap()
+    normals = np.tile([0.0, 0.0, 1.0], (len(partial), 1))
+    result = complete_cloud(PointCloud(partial, None, normals), _CopyAndShift(),
+                            CompletionConfig(missing_only_gap_m=0.01))
+    from scipy.spatial import cKDTree
+
+    gap, _ = cKDTree(partial).query(result.predicted_xyz)
+    # the copies (on the partial) are gone, the shifted points (metres away) all stay
+    assert gap.min() > 0.01 and len(result.predicted_xyz) > 200
+    n = len(partial)
+    np.testing.assert_array_equal(result.cloud.normals[:n], normals)
+    assert np.isnan(result.cloud.normals[n:]).all()

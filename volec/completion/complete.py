@@ -44,10 +44,11 @@ class CompletionConfig:
 
     merge_partial: bool = True
     """The completed cloud is the partial plus the predicted points (else predicted only)."""
-    missing_only_spacings: float = 0.0
-    """When merging, keep only predicted points farther than this many point spacings (the
-    partial's median nearest-neighbour distance) from the partial: the network then only
-    fills what was missing. 0 keeps every predicted point."""
+    missing_only_gap_m: float = 0.0
+    """When merging, keep only predicted points farther than this (metres) from the partial:
+    the network then only fills what was missing, and where the phone saw the surface the
+    dense points (far more accurate than the network's) stand alone. 0 keeps every predicted
+    point."""
     outlier_neighbours: int = 16
     """Statistical outlier removal on the predicted points: neighbours considered..."""
     outlier_std_ratio: float = 2.0
@@ -93,18 +94,18 @@ def complete_cloud(partial: PointCloud, model: SymmCompletion,
         out = model(torch.from_numpy(x[None]).float().to(device))[-1][0].cpu().numpy()
     predicted = remove_statistical_outliers(norm.invert(out.astype(float)),
                                             cfg.outlier_neighbours, cfg.outlier_std_ratio)
-    if cfg.merge_partial and cfg.missing_only_spacings > 0:
+    if cfg.merge_partial and cfg.missing_only_gap_m > 0:
         from scipy.spatial import cKDTree
 
-        tree = cKDTree(partial.xyz)
-        spacing = float(np.median(tree.query(partial.xyz[:: max(1, len(partial) // 2000)],
-                                             k=2)[0][:, 1]))
-        far = tree.query(predicted)[0] > cfg.missing_only_spacings * spacing
-        predicted = predicted[far]
+        gap = cKDTree(partial.xyz).query(predicted)[0]
+        predicted = predicted[gap > cfg.missing_only_gap_m]
     grey = np.tile(np.array(PREDICTED_RGB, np.uint8), (len(predicted), 1))
     if cfg.merge_partial:
         rgb = None if partial.rgb is None else np.concatenate([partial.rgb, grey])
-        cloud = PointCloud(np.concatenate([partial.xyz, predicted]), rgb)
+        # the partial's normals are kept; the predicted points' are unknown (NaN)
+        normals = None if partial.normals is None else np.concatenate(
+            [partial.normals, np.full((len(predicted), 3), np.nan)])
+        cloud = PointCloud(np.concatenate([partial.xyz, predicted]), rgb, normals)
     else:
         cloud = PointCloud(predicted, grey)
     summary = {"partial_points": len(partial), "predicted_points": int(len(out)),
