@@ -40,6 +40,8 @@ def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys
     assert volume_ml(mesh) == pytest.approx(result["volume_ml"], rel=1e-6)
     glb = trimesh.load(out / "mesh.glb", force="mesh")
     assert glb.volume * 1e6 == pytest.approx(result["volume_ml"], rel=1e-4)
+    completed = read_ply(out / "food_completed.ply")
+    assert np.isfinite(completed.normals).all()  # the predicted points' normals are filled in
     # the mesh passes through what the cameras saw ...
     masked = read_ply(out / "food_masked.ply")
     assert np.median(np.abs(trimesh.proximity.signed_distance(mesh, masked.xyz[::20]))) < 1e-3

@@ -28,8 +28,6 @@ def test_a_stage_is_reused_only_with_the_same_settings(tmp_path):
         reusable(record, same, DenseConfig(n_depth_planes=32), overwrite=False)
 
 
-
-
 def test_volec_dense_end_to_end(small_capture, small_result, tmp_path, capsys):
     work = tmp_path / "work"
     shutil.copytree(small_capture / "work" / "sfm", work / "sfm")  # SfM is reused

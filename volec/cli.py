@@ -104,6 +104,7 @@ def _cmd_complete(args: argparse.Namespace) -> int:
     from volec.completion.complete import SHIPPED_CHECKPOINT, CompletionConfig, complete_cloud
     from volec.completion.train import load_checkpoint
     from volec.errors import OutputExistsError
+    from volec.meshing import with_normals
     from volec.pointcloud import read_ply, write_ply
 
     source, out = Path(args.partial), Path(args.out)
@@ -118,7 +119,9 @@ def _cmd_complete(args: argparse.Namespace) -> int:
     except FileNotFoundError as e:
         raise VolecError(str(e)) from e
     result = complete_cloud(partial, model, CompletionConfig(merge_partial=not args.network_only))
-    write_ply(result.cloud, out)
+    # the predicted points' normals are unknown (NaN) until estimated here
+    write_ply(with_normals(result.cloud) if result.cloud.normals is not None else result.cloud,
+              out)
     s = result.summary
     print(f"completed {s['partial_points']} partial points with {s['predicted_kept']} predicted "
           f"ones in {s['seconds']:.2f} s -> {out} ({s['points']} points)")

@@ -47,6 +47,7 @@ from volec.meshing import (
     SupportPlane,
     fit_support_plane,
     mesh_cloud,
+    with_normals,
 )
 from volec.pipeline import (
     config_record,
@@ -275,7 +276,7 @@ def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = N
     files = {"scene": "scene.ply", "food_masked": "food_masked.ply", "mesh_ply": "mesh.ply",
              "mesh_glb": "mesh.glb", "report": "report.md"}
     if model is not None:
-        write_ply(result.cloud, out_dir / "food_completed.ply")
+        write_ply(with_normals(result.cloud), out_dir / "food_completed.ply")
         files["food_completed"] = "food_completed.ply"
     write_bytes_atomic(out_dir / "mesh.ply", result.mesh.mesh.export(file_type="ply"))
     write_bytes_atomic(out_dir / "mesh.glb", result.mesh.mesh.export(file_type="glb"))

@@ -361,6 +361,7 @@ def volume_experiment(root: Path, items: list[str], scenario: Scenario,
     ``volume_eval.json``, keyed by the config and the checkpoint's digest.
     """
     from volec.estimate import EstimateConfig, checkpoint_path, food_mesh, load_completion_model
+    from volec.meshing import with_normals
     from volec.pipeline import dense_and_mask
     from volec.pointcloud import write_ply
     from volec.synth import load_truth
@@ -396,7 +397,7 @@ def volume_experiment(root: Path, items: list[str], scenario: Scenario,
                 made = food_mesh(masked.cloud, dense.cloud, up, net, cfg)
                 write_bytes_atomic(work / f"mesh_{tag}.ply", made.mesh.mesh.export(file_type="ply"))
                 if net is not None:
-                    write_ply(made.cloud, work / "food_completed.ply")
+                    write_ply(with_normals(made.cloud), work / "food_completed.ply")
                 mesh_points = sample_surface(made.mesh.mesh, 20000, seed=0)
                 cd_l1, _ = chamfer_distance(mesh_points, truth_points)
                 cloud_l1, _ = chamfer_distance(made.cloud.xyz, truth_points)

@@ -190,6 +190,12 @@ def oriented_normals(cloud: PointCloud, neighbours: int = 24) -> np.ndarray:
     return normals
 
 
+def with_normals(cloud: PointCloud, neighbours: int = 24) -> PointCloud:
+    """``cloud`` with a unit normal on every point (:func:`oriented_normals`): what a file
+    for other tools should carry, where completion left the predicted points' normals NaN."""
+    return PointCloud(cloud.xyz, cloud.rgb, oriented_normals(cloud, neighbours))
+
+
 def _poisson(xyz: np.ndarray, normals: np.ndarray, cfg: MeshingConfig):  # -> o3d TriangleMesh
     import open3d as o3d
 
