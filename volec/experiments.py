@@ -65,47 +65,67 @@ def ensure_capture(root: Path, item: str, scenario: Scenario) -> Path:
     return out
 
 
-def cached_row(cache: Path, key: dict[str, Any], compute: Callable[[], dict[str, Any]],
-               key_field: str = "key") -> dict[str, Any]:
-    """The result row stored in ``cache`` when it was made with ``key``; otherwise
-    ``compute()``, stored with its key (atomically) and returned."""
+def _cached(cache: Path, key: dict[str, Any], key_field: str = "key") -> dict[str, Any] | None:
+    """The row stored in ``cache`` with ``key``, or None."""
     if cache.exists():
         cached = json.loads(cache.read_text())
         if cached.pop(key_field, None) == key:
             return cached
+    return None
+
+
+def cached_row(cache: Path, key: dict[str, Any], compute: Callable[[], dict[str, Any]],
+               key_field: str = "key") -> dict[str, Any]:
+    """The result row stored in ``cache`` when it was made with ``key``; otherwise
+    ``compute()``, stored with its key (atomically) and returned."""
+    cached = _cached(cache, key, key_field)
+    if cached is not None:
+        return cached
     row = compute()
     write_json_atomic(cache, {**row, key_field: key})
     return row
 
 
+SFM_CACHE = "sfm_eval.json"
+
+
+def sfm_row(root: Path, item: str, scenario: Scenario, cfg: SfmConfig) -> dict[str, Any]:
+    """One (item, scenario) of :func:`sfm_experiment`, computed and cached."""
+    out = ensure_capture(root, item, scenario)
+
+    def run() -> dict[str, Any]:
+        reported = read_transforms_json(out / "capture")
+        exact = read_transforms_json(out / "ground_truth" / "transforms_exact.json",
+                                     check_image_sizes=False)
+        start = time.perf_counter()
+        result = run_sfm(reported, out / "work", cfg)
+        return {"item": item, "scenario": scenario.name, "frames": len(reported),
+                "wall_s": time.perf_counter() - start,
+                **evaluate_sfm(result, exact, reported),
+                **{f"{k}_s": v for k, v in result.summary["timings_s"].items()}}
+
+    return cached_row(out / "work" / SFM_CACHE, config_record(cfg), run, "sfm_config")
+
+
 def sfm_experiment(
-    root: Path, items: list[str], scenario_list: list[Scenario], cfg: SfmConfig | None = None
+    root: Path, items: list[str], scenario_list: list[Scenario], cfg: SfmConfig | None = None,
+    workers: int = 1, progress: bool = False,
 ) -> pd.DataFrame:
-    """SfM errors and wall time per (item, scenario), cached per run and config.
+    """SfM errors and wall time per (item, scenario), cached per run and config; runs not
+    cached go to ``workers`` processes (:func:`map_items`).
 
     The cache is keyed by the config, not by volec's code: after changing the SfM code,
     delete ``ROOT/*/work`` to measure it again.
     """
     cfg = cfg or SfmConfig()
-    key = config_record(cfg)
-    rows = []
-    for scenario in scenario_list:
-        for item in items:
-            out = ensure_capture(root, item, scenario)
-
-            def run(out: Path = out, item: str = item, scenario: Scenario = scenario
-                    ) -> dict[str, Any]:
-                reported = read_transforms_json(out / "capture")
-                exact = read_transforms_json(out / "ground_truth" / "transforms_exact.json",
-                                             check_image_sizes=False)
-                start = time.perf_counter()
-                result = run_sfm(reported, out / "work", cfg)
-                return {"item": item, "scenario": scenario.name, "frames": len(reported),
-                        "wall_s": time.perf_counter() - start,
-                        **evaluate_sfm(result, exact, reported),
-                        **{f"{k}_s": v for k, v in result.summary["timings_s"].items()}}
-
-            rows.append(cached_row(out / "work" / "sfm_eval.json", key, run, "sfm_config"))
+    runs = [(item, scenario) for scenario in scenario_list for item in items]
+    rows = [_cached(root / f"{item}-{sc.name}" / "work" / SFM_CACHE, config_record(cfg),
+                    "sfm_config") for item, sc in runs]
+    todo = [n for n, row in enumerate(rows) if row is None]
+    computed = map_items(sfm_row, [(root, *runs[n], cfg) for n in todo],
+                         [f"{runs[n][0]} {runs[n][1].name}" for n in todo], workers, progress)
+    for n, row in zip(todo, computed, strict=True):
+        rows[n] = row
     return pd.DataFrame(rows)
 
 
@@ -348,9 +368,108 @@ def completion_examples(checkpoint: Path, names: list[str], quick: bool
 # ----------------------------------------------------------------------------- volume
 
 
+def _limit_threads(threads: int) -> None:
+    """Worker initializer: each of the parallel workers uses ``threads`` cores."""
+    import torch
+
+    torch.set_num_threads(threads)
+
+
+def map_items(function: Callable[..., dict[str, Any]], jobs: list[tuple], labels: list[str],
+              workers: int = 1, progress: bool = True) -> list[dict[str, Any]]:
+    """``[function(*job) for job in jobs]``, with ``workers`` processes when above 1.
+
+    Most stages use one or two cores for much of their time (rendering, OpenCV SIFT,
+    incremental mapping), so on a 2-core machine two items at once finish sooner than one
+    after the other. Workers are spawned (not forked: torch, open3d and COLMAP hold thread
+    pools that a fork would copy half-initialised), so ``function`` must be importable,
+    ``jobs`` picklable, and a script that calls this with ``workers > 1`` needs the
+    ``if __name__ == "__main__":`` guard (notebooks do not). Results come back in the order
+    of ``jobs``.
+    """
+    if workers <= 1 or len(jobs) <= 1:
+        rows = []
+        for n, (job, label) in enumerate(zip(jobs, labels, strict=True)):
+            if progress:
+                print(f"[{n + 1}/{len(jobs)}] {label}", flush=True)
+            rows.append(function(*job))
+        return rows
+    import multiprocessing
+    import os
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    threads = max(1, (os.cpu_count() or 1) // workers)
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                             initializer=_limit_threads, initargs=(threads,)) as pool:
+        futures = {pool.submit(function, *job): n for n, job in enumerate(jobs)}
+        rows: list[dict[str, Any] | None] = [None] * len(jobs)
+        for done, future in enumerate(as_completed(futures), start=1):
+            n = futures[future]
+            rows[n] = future.result()
+            if progress:
+                print(f"[{done}/{len(jobs)}] {labels[n]} done", flush=True)
+    return rows  # type: ignore[return-value]
+
+
+VOLUME_CACHE = "volume_eval.json"
+
+
+def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
+               key: dict[str, Any], workers: int = 1) -> dict[str, Any]:
+    """One item of :func:`volume_experiment`, computed and cached under ``key``; ``workers``
+    (how many items ran at once, sharing the cores) is recorded with the times."""
+    from volec.estimate import food_mesh, food_silhouettes, load_completion_model
+    from volec.meshing import with_normals
+    from volec.pipeline import dense_and_mask
+    from volec.pointcloud import write_ply
+    from volec.synth import load_truth
+
+    out = ensure_capture(root, item, scenario)
+    work = out / "work"
+
+    def run() -> dict[str, Any]:
+        model = load_completion_model(cfg)
+        capture = read_transforms_json(out / "capture")
+        sfm, dense, masked = dense_and_mask(capture, work, cfg.sfm, cfg.dense, cfg.masking,
+                                            progress=False)
+        truth_mesh = load_ground_truth_mesh(out)
+        truth_points = sample_surface(truth_mesh, 20000, seed=0)
+        truth = load_truth(out)
+        up = np.asarray(truth["world_up"], float)
+        row: dict[str, Any] = {
+            "item": item, "label": truth["label"], "scenario": scenario.name,
+            "frames": len(capture), "registered": int(sfm.registered.sum()),
+            "gt_ml": float(truth_mesh.volume * 1e6), "workers": workers,
+            "sfm_s": float(sum(sfm.summary["timings_s"].values())),
+            "dense_s": float(sum(dense.summary["timings_s"].values())),
+            # stage records made before masking timed itself have no time
+            "masking_s": masked.report.get("seconds", np.nan),
+        }
+        start = time.perf_counter()
+        silhouettes = food_silhouettes(capture, sfm, cfg)
+        row["silhouettes_s"] = time.perf_counter() - start
+        for tag, net in (("no_completion", None), ("completion", model)):
+            made = food_mesh(masked.cloud, dense.cloud, up, net, cfg, silhouettes)
+            write_bytes_atomic(work / f"mesh_{tag}.ply", made.mesh.mesh.export(file_type="ply"))
+            if net is not None:
+                write_ply(with_normals(made.cloud), work / "food_completed.ply")
+            mesh_points = sample_surface(made.mesh.mesh, 20000, seed=0)
+            cd_l1, _ = chamfer_distance(mesh_points, truth_points)
+            cloud_l1, _ = chamfer_distance(made.cloud.xyz, truth_points)
+            row |= {f"{tag}_ml": made.volume_ml, f"{tag}_chamfer_mm": 1000 * cd_l1,
+                    f"{tag}_cloud_chamfer_mm": 1000 * cloud_l1,
+                    f"{tag}_support_found": made.support is not None,
+                    f"{tag}_carved_fraction": made.mesh.report.get("carved_fraction", 0.0),
+                    f"{tag}_warnings": len(made.warnings),
+                    **{f"{tag}_{k}": v for k, v in made.seconds.items()}}
+        return row
+
+    return cached_row(work / VOLUME_CACHE, key, run)
+
+
 def volume_experiment(root: Path, items: list[str], scenario: Scenario,
-                      cfg: EstimateConfig | None = None, progress: bool = True
-                      ) -> pd.DataFrame:
+                      cfg: EstimateConfig | None = None, progress: bool = True,
+                      workers: int = 1) -> pd.DataFrame:
     """The whole pipeline per item, with and without completion, scored against the truth.
 
     SfM, dense and masking run (or are reused) in ``ROOT/ITEM-SCENARIO/work``, as in
@@ -358,60 +477,21 @@ def volume_experiment(root: Path, items: list[str], scenario: Scenario,
     ``mesh_no_completion.ply``, ``food_completed.ply``). A row has the true and estimated
     volumes, the Chamfer distance of each mesh to the true surface, and each stage's wall time
     (SfM and dense from their stage records, measured when they ran). Cached per item in
-    ``volume_eval.json``, keyed by the config and the checkpoint's digest.
+    ``volume_eval.json``, keyed by the config and the checkpoint's digest; items not cached
+    run on ``workers`` processes (:func:`map_items`).
     """
-    from volec.estimate import EstimateConfig, checkpoint_path, food_mesh, load_completion_model
-    from volec.meshing import with_normals
-    from volec.pipeline import dense_and_mask
-    from volec.pointcloud import write_ply
-    from volec.synth import load_truth
+    from volec.estimate import EstimateConfig, checkpoint_path
 
     cfg = cfg or EstimateConfig()
     key = {"config": config_record(cfg), "checkpoint": _file_digest(checkpoint_path(cfg))}
-    model = None
-    rows = []
-    for n, item in enumerate(items):
-        out = ensure_capture(root, item, scenario)
-        work = out / "work"
-
-        def run(out: Path = out, work: Path = work, item: str = item) -> dict[str, Any]:
-            nonlocal model
-            model = model or load_completion_model(cfg)
-            capture = read_transforms_json(out / "capture")
-            sfm, dense, masked = dense_and_mask(capture, work, cfg.sfm, cfg.dense, cfg.masking,
-                                                progress=False)
-            truth_mesh = load_ground_truth_mesh(out)
-            truth_points = sample_surface(truth_mesh, 20000, seed=0)
-            truth = load_truth(out)
-            up = np.asarray(truth["world_up"], float)
-            row: dict[str, Any] = {
-                "item": item, "label": truth["label"], "scenario": scenario.name,
-                "frames": len(capture), "registered": int(sfm.registered.sum()),
-                "gt_ml": float(truth_mesh.volume * 1e6),
-                "sfm_s": float(sum(sfm.summary["timings_s"].values())),
-                "dense_s": float(sum(dense.summary["timings_s"].values())),
-                # stage records made before masking timed itself have no time
-                "masking_s": masked.report.get("seconds", np.nan),
-            }
-            for tag, net in (("no_completion", None), ("completion", model)):
-                made = food_mesh(masked.cloud, dense.cloud, up, net, cfg)
-                write_bytes_atomic(work / f"mesh_{tag}.ply", made.mesh.mesh.export(file_type="ply"))
-                if net is not None:
-                    write_ply(with_normals(made.cloud), work / "food_completed.ply")
-                mesh_points = sample_surface(made.mesh.mesh, 20000, seed=0)
-                cd_l1, _ = chamfer_distance(mesh_points, truth_points)
-                cloud_l1, _ = chamfer_distance(made.cloud.xyz, truth_points)
-                row |= {f"{tag}_ml": made.volume_ml, f"{tag}_chamfer_mm": 1000 * cd_l1,
-                        f"{tag}_cloud_chamfer_mm": 1000 * cloud_l1,
-                        f"{tag}_support_found": made.support is not None,
-                        f"{tag}_warnings": len(made.warnings),
-                        **{f"{tag}_{k}": v for k, v in made.seconds.items()}}
-            return row
-
-        if progress:
-            print(f"[{n + 1}/{len(items)}] {item}", flush=True)
-        rows.append(cached_row(work / "volume_eval.json", key, run))
-    return pd.DataFrame(rows)
+    rows = {item: _cached(root / f"{item}-{scenario.name}" / "work" / VOLUME_CACHE, key)
+            for item in items}
+    todo = [item for item in items if rows[item] is None]
+    computed = map_items(volume_row, [(root, item, scenario, cfg, key, workers)
+                                      for item in todo],
+                         todo, workers, progress)
+    rows.update(zip(todo, computed, strict=True))
+    return pd.DataFrame([rows[item] for item in items])
 
 
 def volume_table(raw: pd.DataFrame) -> pd.DataFrame:
@@ -451,10 +531,12 @@ def paired_tests(raw: pd.DataFrame) -> pd.DataFrame:
 
 def runtime_table(raw: pd.DataFrame) -> pd.DataFrame:
     """Wall time per stage (s) over the items (with completion): mean, median and max, and
-    the end-to-end total."""
+    the end-to-end total. Items that ran two or more at once (``workers``) shared the cores,
+    so their times are longer than a capture processed alone (``benchmarks/bench_estimate.py``
+    measures that)."""
     stages = {"SfM": raw["sfm_s"], "dense stereo": raw["dense_s"],
               "masking": raw["masking_s"], "completion": raw["completion_completion_s"],
-              "meshing + volume": raw["completion_meshing_s"]}
+              "meshing + volume": raw["silhouettes_s"] + raw["completion_meshing_s"]}
     stages["total"] = sum(stages.values())
     return pd.DataFrame([{"stage": k, "mean_s": v.mean(), "median_s": v.median(),
                           "max_s": v.max()} for k, v in stages.items()])
