@@ -93,13 +93,15 @@ write([
         "maps the model into the AR world: the rotation from the AR orientations, the scale "
         "from short-baseline AR displacements (drift cancels there) or from a Sim(3) fit to all "
         "camera centres. The table compares both against the exact poses of synthetic "
-        "captures: full orbits, half orbits, and 1 cm of AR drift."
+        "captures: full orbits, half orbits, and 1 cm of AR drift. Captures not cached yet run "
+        "two at a time (`workers`), so their `wall_s` is that of two runs sharing the 2 cores "
+        "(`benchmarks/bench_sfm.py` times one alone)."
     ),
     parameters(
         "quick = False  # CI-sized run: one item, a 20-frame capture\n"
         'items = ["apple", "banana", "chocolate_cake"]\n'
         'trajectory_item = "banana"\n'
-        "workers = 2  # captures processed at once (2 cores: about 1.5x faster than one by one)"
+        "workers = 2  # captures processed at once (2 cores: measured 1.3x faster than one by one)"
     ),
     code(
         "from volec.capture import read_transforms_json\n"
@@ -274,17 +276,19 @@ write([
         "# 04 · Meshing and volume: the whole pipeline on the benchmark\n\n"
         "Each item's capture goes through SfM, dense stereo and masking (reused from notebooks "
         "01-02 where they ran), then twice through meshing: once with the masked cloud as it "
-        "is (the VolE-style baseline: the support plane and Poisson close the unseen "
-        "underside) and once completed by the network. Meshing is screened Poisson, a ray-cast "
-        "signed distance cut at the support plane (the plate top, found by RANSAC in the scene "
-        "cloud) and marching cubes, so every mesh is watertight before its volume is taken.\n\n"
+        "is (the VolE-style baseline: the support plane, Poisson and the masks close the "
+        "unseen underside) and once completed by the network. Meshing is screened Poisson, a "
+        "ray-cast signed distance cut at the support plane (the plate top, found by RANSAC in "
+        "the scene cloud) and intersected with the visual hull of the food masks, then marching "
+        "cubes, so every mesh is watertight before its volume is taken.\n\n"
         "Results are cached per item (`work/volume_eval.json`): a re-run only redoes what "
-        "changed. The first full run takes about 45 minutes on 2 cores."
+        "changed. Items not cached yet run two at a time (`workers`); the first full run of "
+        "this notebook took 46 minutes on 2 cores."
     ),
     parameters(
         "quick = False  # CI-sized run: one item, a 20-frame capture\n"
         'shown_item = "apple"\n'
-        "workers = 2  # captures processed at once (2 cores: about 1.5x faster than one by one)"
+        "workers = 2  # captures processed at once (2 cores: measured 1.3x faster than one by one)"
     ),
     code(
         "from volec.experiments import qualitative_panels, scenarios, volume_experiment\n"
@@ -358,7 +362,9 @@ write([
         "table3"
     ),
     md("## Runtime per stage\n\nWall time in seconds per 100-frame capture on this machine "
-       "(SfM and dense as measured when they ran)."),
+       "(SfM and dense as measured when they ran). Items that ran two at a time (column "
+       "`workers` of `volume_raw`) shared the 2 cores, so these times are longer than those "
+       "of a capture processed alone, which `benchmarks/bench_estimate.py` measures."),
     code(
         "runtime = runtime_table(raw)\n"
         'write_table(runtime, figures_dir() / "runtime_stages", float_digits=1)\n'
