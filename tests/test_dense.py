@@ -136,7 +136,8 @@ def test_consistent_exact_depths_fuse_onto_the_surface(plane_scene):
     from volec.dense import DepthMap
 
     views, depths = plane_scene
-    maps = [DepthMap(d.astype(np.float32), np.ones_like(d, np.float32), []) for d in depths]
+    maps = {i: DepthMap(d.astype(np.float32), np.ones_like(d, np.float32), [])
+            for i, d in enumerate(depths)}
     cfg = DenseConfig(geometric_min_views=2)
     pix, X, count = consistent_points(views, maps, 0, [1, 2, 3, 4], cfg)
     assert len(X) > 0.8 * H * W

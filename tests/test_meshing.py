@@ -15,8 +15,10 @@ from volec.meshing import (
     fit_support_plane,
     mesh_cloud,
     oriented_normals,
+    signed_distance_grid,
     silhouette_field,
     silhouette_view,
+    silhouette_views,
 )
 from volec.pointcloud import PointCloud
 from volec.volume import volume_ml
@@ -134,6 +136,45 @@ def test_silhouette_field_is_the_metric_distance_outside_the_mask():
     assert np.isneginf(unseen).all()
     # two views must agree when min_views is 2: one view alone carves nothing
     assert np.isneginf(silhouette_field(points, [view], 1.0, 2)).all()
+
+
+def test_signed_distance_is_exact_near_the_surface_and_signed_everywhere():
+    import trimesh
+
+    radius_m, voxel_m = 0.03, 0.002
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=radius_m)
+    lower = np.full(3, -0.04)
+    shape = (41, 41, 41)
+    field_m = signed_distance_grid(sphere, lower, shape, voxel_m, band_voxels=3)
+    axes = [lower[i] + voxel_m * np.arange(shape[i]) for i in range(3)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+    exact = np.linalg.norm(grid, axis=-1) - radius_m
+    # the icosphere's facets lie up to 0.03 mm inside the true sphere
+    clear = np.abs(exact) > 1e-4
+    assert np.array_equal(field_m[clear] < 0, exact[clear] < 0)
+    near = np.abs(exact) < 3 * voxel_m
+    assert np.abs(field_m[near] - exact[near]).max() < 5e-5
+    # farther away, within a grid step (a distance transform of the inside/outside border)
+    assert np.abs(field_m - exact).max() < voxel_m
+
+
+def test_silhouette_views_are_evenly_spaced_registered_frames(tmp_path):
+    from volec.capture import read_mask, read_transforms_json
+    from volec.synth import PRESETS, write_synthetic_capture
+
+    out = write_synthetic_capture("apple", tmp_path / "apple",
+                                  PRESETS["quick"].with_(n_frames=6), progress=False)
+    capture = read_transforms_json(out / "capture")
+    poses = np.stack([f.T_world_from_cam for f in capture.frames])
+    registered = np.array([True, True, False, True, True, True])
+    views = silhouette_views(capture, poses, registered, max_views=3)
+    assert len(views) == 3
+    for view, frame in zip(views, [0, 3, 5], strict=True):
+        np.testing.assert_allclose(view.T_cam_from_world @ poses[frame], np.eye(4), atol=1e-9)
+        mask = read_mask(capture.frames[frame])
+        assert (view.signed_distance_px[mask] <= 0).all()
+        assert (view.signed_distance_px[~mask] > 0).all()
+    assert len(silhouette_views(capture, poses, registered)) == 5
 
 
 def test_silhouettes_carve_the_unseen_gap_under_a_sphere_on_a_table():

@@ -42,6 +42,9 @@ def test_volec_dense_end_to_end(small_capture, small_result, tmp_path, capsys):
     report = json.loads((work / "masking.json").read_text())
     assert report["kept"] == len(food) and report["input_points"] == len(scene)
     assert scene.normals is not None and scene.rgb is not None
+    # every other registered frame gets a depth map (DenseConfig.reference_stride = 2)
+    registered = int(small_result[0].registered.sum())
+    assert json.loads((work / "dense.json").read_text())["reference_views"] == (registered + 1) // 2
     mesh = load_ground_truth_mesh(small_capture)
     d_food = distances_to_surface(food.xyz, mesh)
     d_scene = distances_to_surface(scene.xyz, mesh)

@@ -169,7 +169,8 @@ def food_silhouettes(capture: Capture, sfm: SfmResult, cfg: EstimateConfig
     turns carving off."""
     if not cfg.carve_silhouettes:
         return None
-    return silhouette_views(capture, sfm.T_world_from_cam, sfm.registered)
+    return silhouette_views(capture, sfm.T_world_from_cam, sfm.registered,
+                            cfg.meshing.silhouette_max_views)
 
 
 def orbit_coverage_deg(camera_centres: np.ndarray, target: np.ndarray, up: np.ndarray) -> float:
