@@ -284,6 +284,10 @@ def _poisson(xyz: np.ndarray, normals: np.ndarray, cfg: MeshingConfig):  # -> o3
     pcd.normals = o3d.utility.Vector3dVector(normals)
     if cfg.thinning_voxel_m > 0:
         pcd = pcd.voxel_down_sample(cfg.thinning_voxel_m)
+        # Opposite normals in one voxel (the two sides of a thin part) average to nearly
+        # nothing: such points have no direction, and Poisson would reject them as bad data.
+        length = np.linalg.norm(np.asarray(pcd.normals), axis=1)
+        pcd = pcd.select_by_index(np.flatnonzero(length > 0.1).tolist())
         pcd.normalize_normals()
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
         mesh, _ = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
