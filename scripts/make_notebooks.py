@@ -283,7 +283,7 @@ write([
         "cubes, so every mesh is watertight before its volume is taken.\n\n"
         "Results are cached per item (`work/volume_eval.json`): a re-run only redoes what "
         "changed. Items not cached yet run two at a time (`workers`); the first full run of "
-        "this notebook took 46 minutes on 2 cores."
+        "this notebook took 37 minutes on 2 cores."
     ),
     parameters(
         "quick = False  # CI-sized run: one item, a 20-frame capture\n"

@@ -582,11 +582,10 @@ def run_dense(capture: Capture, T_world_from_cam: np.ndarray, registered: np.nda
     references = positions[::cfg.reference_stride]
     sources = {int(r): select_sources(centres, targets, r, positions, cfg.n_sources,
                                       cfg.source_angle_deg) for r in references}
-    # Depth maps are checked against the maps of other reference views (all of them when
-    # every frame is one, which are then the stereo sources themselves).
-    checks = {int(r): sources[int(r)] if cfg.reference_stride == 1 else
-              select_sources(centres, targets, r, references, cfg.n_sources,
-                             cfg.source_angle_deg) for r in references}
+    # Depth maps are checked against those of other reference views, chosen the same way
+    # (with every frame a reference, they are the stereo sources themselves).
+    checks = {int(r): select_sources(centres, targets, r, references, cfg.n_sources,
+                                     cfg.source_angle_deg) for r in references}
     maps: dict[int, DepthMap] = {}
     ranges = []
     for r in tqdm(references, desc="dense: depth maps", disable=not progress):
