@@ -106,7 +106,7 @@ write([
     code(
         "from volec.capture import read_transforms_json\n"
         "from volec.experiments import ensure_capture, scenarios, sfm_error_table, sfm_experiment\n"
-        "from volec.paths import data_dir, figures_dir\n"
+        "from volec.paths import experiment_dir, figures_dir\n"
         "from volec.sfm import load_sfm\n"
         "from volec.synth import load_ground_truth_mesh, load_truth\n"
         "from volec.tables import write_table\n"
@@ -117,7 +117,7 @@ write([
     code(
         "conditions = list(scenarios(quick).values())\n"
         "chosen = items[:1] if quick else items\n"
-        'raw = sfm_experiment(data_dir() / "bench-sfm", chosen, conditions, workers=workers)\n'
+        "raw = sfm_experiment(experiment_dir(quick), chosen, conditions, workers=workers)\n"
         "table = sfm_error_table(raw)\n"
         'write_table(table, figures_dir() / "sfm_errors", float_digits=3)\n'
         "table"
@@ -125,7 +125,7 @@ write([
     md("## AR, refined and exact camera centres"),
     code(
         "shown_item = chosen[0] if quick else trajectory_item\n"
-        'out = ensure_capture(data_dir() / "bench-sfm", shown_item, conditions[-1])\n'
+        "out = ensure_capture(experiment_dir(quick), shown_item, conditions[-1])\n"
         'reported = read_transforms_json(out / "capture")\n'
         'exact = read_transforms_json(out / "ground_truth" / "transforms_exact.json")\n'
         'refined = load_sfm(out / "work")\n'
@@ -167,7 +167,7 @@ write([
         "from volec.experiments import dense_experiment, dense_table, ensure_capture, scenarios\n"
         "from volec.masking import load_masking\n"
         "from volec.metrics import distances_to_surface\n"
-        "from volec.paths import data_dir, figures_dir\n"
+        "from volec.paths import experiment_dir, figures_dir\n"
         "from volec.synth import load_ground_truth_mesh, load_truth\n"
         "from volec.tables import write_table\n"
         "from volec.viz import distance_histogram, geometry_panels, save_figure"
@@ -178,7 +178,7 @@ write([
     code(
         'scenario = scenarios(quick)["quick" if quick else "full_orbit"]\n'
         "chosen = items[:1] if quick else items\n"
-        'root = data_dir() / "bench-sfm"\n'
+        "root = experiment_dir(quick)\n"
         "raw = pd.concat([dense_experiment(root, chosen, scenario, poses)\n"
         '                 for poses in ("refined", "exact")], ignore_index=True)\n'
         "table = dense_table(raw)\n"
@@ -221,7 +221,7 @@ write([
         "and upsamples the result, guided by the partial and the symmetric points), "
         "reimplemented in plain torch and trained on this machine's CPU on partial views of "
         "procedural foods that are not benchmark items. `make retrain` retrains; this "
-        "notebook uses the checkpoint shipped in `data/completion/`.\n\n"
+        "notebook uses the checkpoint shipped with volec (`volec/completion/weights/`).\n\n"
         "Scores are Chamfer distances to the complete surface, in millimetres, on views the "
         "network never trained on: held-out shapes of the training families, and the 21 "
         "benchmark items (kinds it never saw). The mirror baseline adds the reflection of the "
@@ -292,7 +292,7 @@ write([
     ),
     code(
         "from volec.experiments import qualitative_panels, scenarios, volume_experiment\n"
-        "from volec.paths import data_dir, figures_dir\n"
+        "from volec.paths import experiment_dir, figures_dir\n"
         "from volec.synth import item_names, load_truth\n"
         "from volec.tables import write_table\n"
         "from volec.viz import panels_around, save_figure"
@@ -300,7 +300,7 @@ write([
     code(
         'scenario = scenarios(quick)["quick" if quick else "full_orbit"]\n'
         'items = ["apple"] if quick else item_names()\n'
-        'root = data_dir() / "bench-sfm"\n'
+        "root = experiment_dir(quick)\n"
         "raw = volume_experiment(root, items, scenario, workers=workers)\n"
         'write_table(raw, figures_dir() / "volume_raw", float_digits=3)\n'
         'raw[["item", "gt_ml", "no_completion_ml", "completion_ml", "no_completion_chamfer_mm",\n'
@@ -338,13 +338,13 @@ write([
         "    volume_experiment,\n"
         "    volume_table,\n"
         ")\n"
-        "from volec.paths import data_dir, figures_dir\n"
+        "from volec.paths import experiment_dir, figures_dir\n"
         "from volec.synth import item_names, load_truth\n"
         "from volec.tables import write_table\n"
         "from volec.viz import panels_around, save_figure\n\n"
         'scenario = scenarios(quick)["quick" if quick else "full_orbit"]\n'
         'items = ["apple"] if quick else item_names()\n'
-        'root = data_dir() / "bench-sfm"\n'
+        "root = experiment_dir(quick)\n"
         "raw = volume_experiment(root, items, scenario, progress=False)"
     ),
     md("## Table I: volume per item\n\nAPE: absolute percentage error; accuracy = 100 - APE. "

@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 
 from volec.capture import Capture, read_transforms_json
-from volec.sfm import SfmResult, run_sfm
+from volec.pipeline import run_sfm_stage
+from volec.sfm import SfmResult
 from volec.synth import PRESETS, write_synthetic_capture
 
 
@@ -28,6 +29,7 @@ def small_capture(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="session")
 def small_result(small_capture: Path) -> tuple[SfmResult, Capture]:
-    """SfM of ``small_capture`` in ``small_capture/work`` (run once per test session)."""
+    """SfM of ``small_capture`` in ``small_capture/work`` (run once per test session), with
+    the provenance the pipeline records, so copies of it are reused for this capture."""
     cap = read_transforms_json(small_capture / "capture")
-    return run_sfm(cap, small_capture / "work"), cap
+    return run_sfm_stage(cap, small_capture / "work")[0], cap

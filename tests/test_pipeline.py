@@ -4,28 +4,42 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import replace
 
 import numpy as np
-import pytest
 
 from tests.files import snapshot
+from volec.capture import read_transforms_json
 from volec.cli import main
 from volec.dense import DenseConfig
-from volec.errors import OutputExistsError
 from volec.metrics import distances_to_surface
-from volec.pipeline import config_record, reusable
+from volec.pipeline import config_record, stale_reasons
 from volec.pointcloud import read_ply
+from volec.provenance import capture_identity, file_digest, stage_provenance
 from volec.synth import PRESETS, load_ground_truth_mesh, write_synthetic_capture
 
 
-def test_a_stage_is_reused_only_with_the_same_settings(tmp_path):
-    record = tmp_path / "dense.json"
-    same = config_record(DenseConfig())
-    assert reusable(record, None, DenseConfig(), overwrite=False) is False
-    assert reusable(record, same, DenseConfig(), overwrite=False) is True
-    assert reusable(record, same, DenseConfig(), overwrite=True) is False
-    with pytest.raises(OutputExistsError, match="n_depth_planes"):
-        reusable(record, same, DenseConfig(n_depth_planes=32), overwrite=False)
+def test_a_stage_is_reused_only_when_made_from_the_same_inputs(quick_capture, tmp_path):
+    capture = read_transforms_json(quick_capture / "capture")
+    wanted = stage_provenance(capture, DenseConfig(), {"sfm": "0123"}, ("volec.dense",))
+    (tmp_path / "scene.ply").write_bytes(b"points")
+    record = {"provenance": wanted, "files": {"scene.ply": file_digest(tmp_path / "scene.ply")}}
+    assert stale_reasons(record, wanted, tmp_path, "dense.json") == []
+
+    def reasons(**changes) -> str:
+        other = {**wanted, **changes}
+        return "; ".join(stale_reasons({**record, "provenance": other}, wanted, tmp_path,
+                                       "dense.json"))
+
+    assert "n_depth_planes" in reasons(config=config_record(DenseConfig(n_depth_planes=32)))
+    assert "another SfM result" in reasons(upstream={"sfm": "4567"})
+    assert "code has changed" in reasons(source_digest="ffff")
+    assert "another volec version" in reasons(volec_version="0.0.1")
+    fewer = capture_identity(replace(capture, frames=capture.frames[:-1]))
+    assert "another capture" in reasons(capture=fewer)
+    (tmp_path / "scene.ply").write_bytes(b"other points")
+    assert "scene.ply was changed" in "; ".join(
+        stale_reasons(record, wanted, tmp_path, "dense.json"))
 
 
 def test_volec_dense_end_to_end(small_capture, small_result, tmp_path, capsys):

@@ -13,8 +13,11 @@ Writing goes the other way (:func:`write_transforms_json`) and round-trips every
 
 from __future__ import annotations
 
+import io
 import logging
 import os
+import warnings
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
@@ -122,6 +125,11 @@ class Frame:
     """4x4 camera-to-world transform, OpenCV camera axes, metres."""
     mask_path: Path | None = None
     """Absolute path to a binary food mask (non-zero = food), if the capture has one."""
+    content_digest: str = ""
+    """Digest of the image file's bytes, when the reader computed it (it decodes every image
+    fully, so a capture's identity costs no second read); empty: computed when needed."""
+    mask_digest: str = ""
+    """Digest of the mask file's bytes, like ``content_digest``."""
 
     @property
     def camera_centre(self) -> np.ndarray:
@@ -144,6 +152,12 @@ class Capture:
     """The frames, in capture order."""
     metadata: dict[str, Any] = field(default_factory=dict)
     """Extra top-level keys of the source file, passed through unchanged."""
+    metric: bool | None = None
+    """Whether the poses are in metres: True or False where the source says (a ``"metric"``
+    key in transforms.json; a COLMAP model never is), None where it cannot say (then
+    :mod:`volec.scale` judges from the camera distances)."""
+    metres_per_unit: float = 1.0
+    """The factor the reader multiplied the source's positions by (a scale the user gave)."""
 
     def __len__(self) -> int:
         return len(self.frames)
@@ -253,17 +267,82 @@ def _pose_from(source: Path, fr: dict, index: int) -> np.ndarray:
     return opengl_c2w_to_opencv(M)
 
 
-def _check_image_size(source: Path, index: int, path: Path, intr: Intrinsics, what: str) -> None:
+MAX_IMAGE_PIXELS = 150_000_000
+"""Images declaring more pixels than this are refused before decoding (a 200-megapixel phone
+photo has 2e8; a few-kilobyte file claiming 10^10 pixels is a decompression bomb)."""
+
+
+def verify_image(path: Path, width: int, height: int, what: str, where: str) -> str:
+    """Decode the image at ``path`` fully (a truncated or corrupt file fails here, naming it,
+    not minutes later inside a stage), check its size against ``width`` x ``height``, and
+    return the digest of its bytes. ``what`` ("image", "mask") and ``where`` (the file and
+    frame it is listed in) go into the error messages."""
+    from volec.provenance import bytes_digest
+
     try:
-        with Image.open(path) as im:
-            size = im.size
+        data = Path(path).read_bytes()
     except OSError as e:
-        raise CaptureError(f"{source}: frames[{index}] {what} {path} cannot be read: {e}") from e
-    if size != (intr.width, intr.height):
-        raise CaptureError(
-            f"{source}: frames[{index}] {what} {path} is {size[0]}x{size[1]} but the "
-            f"intrinsics say w={intr.width}, h={intr.height}"
-        )
+        raise CaptureError(f"{where}: {what} {path} cannot be read: {e.strerror or e}") from e
+    try:
+        with warnings.catch_warnings():
+            # volec's own pixel limit below is stricter than PIL's bomb warning
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(io.BytesIO(data)) as im:
+                size = im.size
+                if size[0] * size[1] > MAX_IMAGE_PIXELS:
+                    raise CaptureError(
+                        f"{where}: {what} {path} declares {size[0]}x{size[1]} pixels, more "
+                        f"than volec's limit of {MAX_IMAGE_PIXELS:,} (a corrupt file or a "
+                        "decompression bomb); use the phone's own frames"
+                    )
+                if size != (width, height):
+                    raise CaptureError(
+                        f"{where}: {what} {path} is {size[0]}x{size[1]} but the intrinsics "
+                        f"say w={width}, h={height}"
+                    )
+                im.load()
+    except CaptureError:
+        raise
+    except (OSError, SyntaxError, ValueError, Image.DecompressionBombError) as e:
+        # PIL reports truncated files as OSError, some corrupt headers as SyntaxError
+        raise CaptureError(f"{where}: {what} {path} is not a readable image ({e}); replace "
+                           "it, or remove the frame from the capture") from e
+    return bytes_digest(data)
+
+
+def _verify_frame(source: Path, index: int, frame: Frame) -> Frame:
+    """``frame`` with the digests of its image and mask, both decoded and size-checked."""
+    where = f"{source}: frames[{index}]"
+    w, h = frame.intrinsics.width, frame.intrinsics.height
+    image = verify_image(frame.image_path, w, h, "image", where)
+    mask = "" if frame.mask_path is None else verify_image(frame.mask_path, w, h, "mask", where)
+    return replace(frame, content_digest=image, mask_digest=mask)
+
+
+def verify_frames(source: Path, frames: list[Frame], indices: list[int]) -> list[Frame]:
+    """Every frame decoded and checked (:func:`verify_image`), on two threads (decoding
+    releases the GIL); the first bad file raises."""
+    with ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
+        return list(pool.map(lambda args: _verify_frame(source, *args), zip(indices, frames,
+                                                                             strict=True)))
+
+
+#: Keys of transforms.json that mark files whose positions are not metric: instant-ngp's
+#: colmap2nerf rescales scenes to fit its unit cube (``aabb_scale``), nerfstudio's COLMAP
+#: conversion keeps COLMAP's arbitrary units (``applied_transform``).
+UNSCALED_MARKERS = ("aabb_scale", "applied_transform")
+
+
+def _metric_flag(source: Path, top: dict[str, Any]) -> bool | None:
+    """What ``transforms.json`` says of its units: its ``"metric"`` key, False when it carries
+    an unscaled tool's marker, None when it cannot say."""
+    if "metric" in top:
+        if not isinstance(top["metric"], bool):
+            raise CaptureError(f"{source}: 'metric' is {top['metric']!r}; expected true or false")
+        return top["metric"]
+    if any(k in top for k in UNSCALED_MARKERS):
+        return False
+    return None
 
 
 def read_transforms_json(
@@ -275,7 +354,9 @@ def read_transforms_json(
 
     ``on_missing`` says what to do with frames whose image (or mask) file does not exist:
     ``"error"`` raises with the list, ``"skip"`` drops them with a warning naming each.
-    With ``check_image_sizes`` each image's header is read and compared to ``w``/``h``.
+    With ``check_image_sizes`` every image and mask is decoded fully and its size compared to
+    ``w``/``h`` (:func:`verify_image`); their digests make the capture's identity.
+    The capture's ``metric`` is what the file says of its units (:func:`_metric_flag`).
     """
     import json
 
@@ -292,10 +373,12 @@ def read_transforms_json(
     if "frames" not in top or not isinstance(top["frames"], list):
         raise CaptureError(f"{source}: missing key 'frames' (a list of frames)")
     if not top["frames"]:
-        raise CaptureError(f"{source}: 'frames' is empty")
+        raise CaptureError(f"{source}: 'frames' is empty; a capture needs its frames listed")
+    metric = _metric_flag(source, top)
     root = source.parent.resolve()
 
     frames: list[Frame] = []
+    indices: list[int] = []
     missing: list[str] = []
     seen: set[str] = set()
     for i, fr in enumerate(top["frames"]):
@@ -315,11 +398,8 @@ def read_transforms_json(
         if absent:
             missing.append(f"frames[{i}]: " + ", ".join(str(p) for p in absent))
             continue
-        if check_image_sizes:
-            _check_image_size(source, i, image_path, intr, "image")
-            if mask_path is not None:
-                _check_image_size(source, i, mask_path, intr, "mask")
         frames.append(Frame(name, image_path, intr, T, mask_path))
+        indices.append(i)
 
     if missing:
         listing = "\n  ".join(missing[:20]) + ("\n  ..." if len(missing) > 20 else "")
@@ -333,9 +413,12 @@ def read_transforms_json(
             "%s: skipping %d of %d frames with missing files:\n  %s",
             source, len(missing), len(top["frames"]), listing,
         )
-    reserved = {"frames", "camera_model", *_INTRINSIC_KEYS, *DISTORTION_KEYS["FULL_OPENCV"]}
+    if check_image_sizes:
+        frames = verify_frames(source, frames, indices)
+    reserved = {"frames", "camera_model", "metric", *_INTRINSIC_KEYS,
+                *DISTORTION_KEYS["FULL_OPENCV"]}
     metadata = {k: v for k, v in top.items() if k not in reserved}
-    return Capture(root=root, frames=tuple(frames), metadata=metadata)
+    return Capture(root=root, frames=tuple(frames), metadata=metadata, metric=metric)
 
 
 def _intrinsics_dict(intr: Intrinsics) -> dict[str, Any]:
@@ -363,6 +446,8 @@ def transforms_dict(capture: Capture, folder: Path) -> dict[str, Any]:
     if len(shared) == 1:
         out.update(_intrinsics_dict(next(iter(shared))))
     out.update(capture.metadata)
+    if capture.metric is not None:
+        out["metric"] = capture.metric
     frames = []
     for f in capture.frames:
         fr: dict[str, Any] = {"file_path": _relative(f.image_path, folder)}
@@ -430,6 +515,7 @@ def read_colmap_model(
 
     frames: list[Frame] = []
     missing: list[str] = []
+    indices: list[int] = []
     for image_id in sorted(rec.reg_image_ids()):
         im = rec.image(image_id)
         cam = rec.camera(im.camera_id)
@@ -454,6 +540,7 @@ def read_colmap_model(
             missing.append(f"{im.name}: " + ", ".join(str(p) for p in absent))
             continue
         frames.append(Frame(im.name, image_path, intr, invert_rigid(T_cam_from_world), mask_path))
+        indices.append(int(image_id))
     if missing:
         listing = "\n  ".join(missing[:20])
         if on_missing == "error" or not frames:
@@ -462,7 +549,10 @@ def read_colmap_model(
             )
         log.warning("%s: skipping %d images with missing files:\n  %s",
                     model_dir, len(missing), listing)
-    return Capture(root=images_dir.resolve(), frames=tuple(frames), metadata={"source": "colmap"})
+    frames = verify_frames(model_dir, frames, indices)
+    # COLMAP's units are arbitrary: the capture is not metric until the user gives a scale
+    return Capture(root=images_dir.resolve(), frames=tuple(frames), metadata={"source": "colmap"},
+                   metric=False)
 
 
 def read_capture(path: Path, on_missing: MissingPolicy = "error") -> Capture:

@@ -8,6 +8,7 @@ Each subcommand is a thin wrapper over a library function.
 from __future__ import annotations
 
 import argparse
+import errno
 import logging
 import sys
 import time
@@ -57,14 +58,39 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_sfm(args: argparse.Namespace) -> int:
+def _open_capture(args: argparse.Namespace):  # -> (Capture, ScaleCheck)
+    """The capture named on the command line, in metres (``--scale``,
+    ``--scale-from-distance``), and why it is taken as metric."""
     from volec.capture import read_capture
-    from volec.pipeline import ensure_sfm
+    from volec.scale import require_metric, scale_from_distance, with_scale
+
+    capture = read_capture(Path(args.capture), on_missing="skip" if args.skip_missing else "error")
+    user_scale = args.scale is not None or args.scale_from_distance is not None
+    if args.scale is not None and args.scale_from_distance is not None:
+        raise VolecError("give either --scale or --scale-from-distance, not both")
+    if args.scale is not None:
+        capture = with_scale(capture, args.scale)
+    elif args.scale_from_distance is not None:
+        a, b, metres = args.scale_from_distance
+        try:
+            distance_m = float(metres)
+        except ValueError:
+            raise VolecError(f"--scale-from-distance: '{metres}' is not a distance in metres"
+                             ) from None
+        capture = with_scale(capture, scale_from_distance(capture, a, b, distance_m))
+    return capture, require_metric(capture, user_scale=user_scale)
+
+
+def _cmd_sfm(args: argparse.Namespace) -> int:
+    from volec.io import folder_lock
+    from volec.pipeline import check_outside_capture, run_sfm_stage
     from volec.sfm import PRESETS
 
     work = Path(args.out)
-    capture = read_capture(Path(args.capture), on_missing="skip" if args.skip_missing else "error")
-    result, computed = ensure_sfm(capture, work, PRESETS[args.preset], args.overwrite)
+    capture, _ = _open_capture(args)
+    check_outside_capture(capture, work)
+    with folder_lock(work):
+        result, computed = run_sfm_stage(capture, work, PRESETS[args.preset], args.overwrite)
     if not computed:
         print(f"{work}/sfm is already finished (pass --overwrite to redo it)")
     s = result.summary
@@ -79,24 +105,30 @@ def _cmd_sfm(args: argparse.Namespace) -> int:
 
 
 def _cmd_dense(args: argparse.Namespace) -> int:
-    from volec.capture import read_capture
     from volec.dense import PRESETS as DENSE_PRESETS
+    from volec.io import folder_lock
     from volec.masking import PRESETS as MASK_PRESETS
-    from volec.pipeline import dense_and_mask
+    from volec.masking import require_masks
+    from volec.pipeline import check_outside_capture, run_stages
     from volec.sfm import PRESETS as SFM_PRESETS
 
     work = Path(args.out)
-    capture = read_capture(Path(args.capture), on_missing="skip" if args.skip_missing else "error")
-    sfm, dense, masked = dense_and_mask(
-        capture, work, SFM_PRESETS[args.sfm_preset], DENSE_PRESETS[args.preset],
-        MASK_PRESETS[args.mask_preset], overwrite=args.overwrite, progress=not args.quiet,
-    )
+    capture, _ = _open_capture(args)
+    check_outside_capture(capture, work)
+    require_masks(capture)
+    with folder_lock(work):
+        stages = run_stages(capture, work, SFM_PRESETS[args.sfm_preset], DENSE_PRESETS[args.preset],
+                            MASK_PRESETS[args.mask_preset], overwrite=args.overwrite,
+                            progress=not args.quiet)
+    sfm, dense, masked = stages.sfm, stages.dense, stages.masked
     d, m = dense.summary, masked.report
     print(f"SfM: {sfm.summary['registered']}/{sfm.summary['frames']} frames registered")
     print(f"dense: {d['depth_maps']} depth maps, {d['points']} points -> {work}/scene.ply")
     print(f"masking: kept {m['kept']} of {m['input_points']} points "
           f"({m['removed_outside_mask']} outside a food mask, {m['removed_too_few_views']} "
           f"seen by too few views) -> {work}/food_masked.ply")
+    for name, why in m.get("unusable_masks", {}).items():
+        print(f"warning: the mask of {name} was left out: {why}")
     return 0
 
 
@@ -128,24 +160,45 @@ def _cmd_complete(args: argparse.Namespace) -> int:
     return 0
 
 
+EXIT_UNTRUSTED = 3
+"""``volec estimate --strict``: the estimate was made but is not trusted."""
+
+
 def _cmd_estimate(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from volec.capture import read_capture
     from volec.estimate import PRESETS, run_estimate
+    from volec.masking import PRESETS as MASK_PRESETS
 
-    capture = read_capture(Path(args.capture), on_missing="skip" if args.skip_missing else "error")
+    capture, scale = _open_capture(args)
     cfg = replace(PRESETS[args.preset], use_completion=not args.no_completion,
                   checkpoint=args.checkpoint or "")
+    if args.mask_preset is not None:
+        cfg = replace(cfg, masking=MASK_PRESETS[args.mask_preset])
     result = run_estimate(capture, Path(args.out), cfg, overwrite=args.overwrite,
-                          progress=not args.quiet)
+                          progress=not args.quiet, scale=scale)
+    trust = "trusted" if result["trusted"] else "NOT TRUSTED"
     print(f"volume: {result['volume_ml']:.1f} mL "
-          f"({'with' if result['completion_used'] else 'without'} completion)")
-    for warning in result["warnings"]:
+          f"({'with' if result['completion_used'] else 'without'} completion; {trust})")
+    for reason in result["reasons"]:
+        print(f"not trusted ({reason['code']}): {reason['message']}")
+    for warning in result["warnings"][len(result["reasons"]):]:
         print(f"warning: {warning}")
     print(f"result: {Path(args.out) / 'result.json'}; mesh: {Path(args.out) / 'mesh.ply'}, "
           f"mesh.glb; report: {Path(args.out) / 'report.md'}")
-    return 0
+    return EXIT_UNTRUSTED if args.strict and not result["trusted"] else 0
+
+
+def _add_capture_options(parser: argparse.ArgumentParser) -> None:
+    """The options of every command that reads a capture."""
+    parser.add_argument("--skip-missing", action="store_true",
+                        help="skip frames whose image file is missing (default: fail)")
+    parser.add_argument("--scale", type=float, metavar="METRES_PER_UNIT",
+                        help="the capture's poses are not in metres: multiply their positions "
+                        "by this (e.g. 0.01 for centimetres)")
+    parser.add_argument("--scale-from-distance", nargs=3, metavar=("FRAME_A", "FRAME_B", "METRES"),
+                        help="the capture's poses are not in metres: scale them so that the "
+                        "cameras of these two frames are METRES apart")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -190,8 +243,7 @@ def build_parser() -> argparse.ArgumentParser:
     sfm.add_argument("--out", required=True, type=Path, help="work folder")
     sfm.add_argument("--preset", default="default",
                      choices=["default", "exhaustive", "colmap_sift"])
-    sfm.add_argument("--skip-missing", action="store_true",
-                     help="skip frames whose image file is missing (default: fail)")
+    _add_capture_options(sfm)
     sfm.add_argument("--overwrite", action="store_true", help="redo a finished SfM stage")
     sfm.set_defaults(func=_cmd_sfm)
 
@@ -211,8 +263,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="masking preset (tolerant: 90%% of views, masks grown 3 px)")
     dense.add_argument("--sfm-preset", default="default",
                        choices=["default", "exhaustive", "colmap_sift"])
-    dense.add_argument("--skip-missing", action="store_true",
-                       help="skip frames whose image file is missing (default: fail)")
+    _add_capture_options(dense)
     dense.add_argument("--overwrite", action="store_true",
                        help="redo every stage, replacing earlier results in WORKDIR")
     dense.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -245,11 +296,18 @@ def build_parser() -> argparse.ArgumentParser:
     estimate.add_argument("--out", required=True, type=Path, help="output folder")
     estimate.add_argument("--no-completion", action="store_true",
                           help="mesh the masked cloud as it is (the VolE-style baseline)")
-    estimate.add_argument("--preset", default="default", choices=["default", "fast"],
-                          help="fast: coarser dense stereo and meshing")
+    estimate.add_argument("--preset", default="default",
+                          choices=["default", "fast", "tolerant_masks"],
+                          help="fast: coarser dense stereo and meshing; tolerant_masks: for "
+                          "imperfect masks")
     estimate.add_argument("--checkpoint", help="a completion checkpoint other than the shipped one")
-    estimate.add_argument("--skip-missing", action="store_true",
-                          help="skip frames whose image file is missing (default: fail)")
+    estimate.add_argument("--mask-preset", choices=["default", "tolerant"],
+                          help="masking preset (tolerant: for imperfect masks, 90%% of views, "
+                          "masks grown 3 px)")
+    estimate.add_argument("--strict", action="store_true",
+                          help=f"exit with status {EXIT_UNTRUSTED} when the estimate is not "
+                          "trusted (result.json says why)")
+    _add_capture_options(estimate)
     estimate.add_argument("--overwrite", action="store_true",
                           help="redo every stage, replacing an earlier result in OUTDIR")
     estimate.add_argument("--quiet", action="store_true", help="no progress display")
@@ -257,8 +315,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: errno values that mean the user's disk or permissions, not a bug in volec.
+_USER_OS_ERRORS = {errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM, errno.EROFS}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the ``volec`` command; returns the process exit status."""
+    """Run the ``volec`` command; returns the process exit status: 0 done, 2 an error the user
+    can act on (one line on stderr), 3 an untrusted estimate with ``--strict``, 1 a bug in volec
+    (with its traceback)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(
@@ -270,7 +334,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         return int(args.func(args))
-    except (VolecError, ValueError, KeyError) as e:
-        message = e.args[0] if isinstance(e, KeyError) and e.args else e
-        print(f"volec: error: {message}", file=sys.stderr)
+    except VolecError as e:
+        print(f"volec: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:
+        if e.errno not in _USER_OS_ERRORS:
+            raise
+        where = e.filename or "a file"
+        print(f"volec: error: cannot write or read {where}: {e.strerror}", file=sys.stderr)
         return 2

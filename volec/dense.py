@@ -41,7 +41,7 @@ from PIL import Image
 from scipy import ndimage
 
 from volec.capture import Capture, Frame, Intrinsics, read_mask
-from volec.errors import VolecError
+from volec.errors import ConfigError, VolecError
 from volec.geometry import invert_rigid
 from volec.pointcloud import (
     PointCloud,
@@ -560,7 +560,7 @@ def run_dense(capture: Capture, T_world_from_cam: np.ndarray, registered: np.nda
 
     cfg = cfg or DenseConfig()
     if cfg.ncc_window_px % 2 == 0 or cfg.ncc_window_px < 3:
-        raise ValueError("ncc_window_px must be odd and at least 3")
+        raise ConfigError("ncc_window_px must be odd and at least 3")
     if len(T_world_from_cam) != len(capture) or len(registered) != len(capture):
         raise ValueError("one pose and one registered flag per capture frame are needed")
     timings: dict[str, float] = {}

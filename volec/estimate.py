@@ -1,25 +1,28 @@
 """The whole pipeline: a capture in, millilitres, a mesh and a report out.
 
-In: a :class:`~volec.capture.Capture` with a food mask per frame, an output folder and an
-:class:`EstimateConfig`. Out, in the output folder (which is also the work folder, so a re-run
-reuses the finished SfM, dense and masking stages):
+In: a metric :class:`~volec.capture.Capture` with a food mask per frame, an output folder and
+an :class:`EstimateConfig`. Out, in the output folder (which is also the work folder, so a
+re-run reuses the finished SfM, dense and masking stages, and a finished estimate):
 
 - ``scene.ply``, ``food_masked.ply`` (and ``sfm/``, ``dense.json``, ``masking.json``);
 - ``food_completed.ply``: the masked cloud plus the network's points (grey), with completion;
 - ``mesh.ply`` and ``mesh.glb``: the closed food mesh (metres, the capture's world frame);
 - ``report.md`` with pictures in ``report/``;
-- ``result.json``: ``volume_ml``, whether completion was used, frames used, per-stage wall
-  time, the support plane, warnings, and the config. Written last: a folder with a
-  ``result.json`` holds a finished estimate.
+- ``result.json``: ``volume_ml``, ``trusted`` and the ``reasons`` it is not (:mod:`volec.trust`),
+  warnings, frames used, per-stage wall time, the support plane, the scale's source, the
+  config and what the result was made from (:mod:`volec.provenance`). Written last, listing
+  the digests of the other files: a folder with a current ``result.json`` holds a finished
+  estimate.
 
-The capture is only read. Every file is written atomically; an earlier result made with other
-settings is refused unless ``overwrite``.
+:func:`estimate_from_stages` is the pure core (stage results in, a :class:`Estimate` out) that
+both :func:`run_estimate` (the command line) and the experiments call; the experiments only add
+scoring. Nothing here reads a capture's ground truth. The capture is only read; every file is
+written atomically, and an earlier result made from other inputs is refused unless
+``overwrite``.
 """
 
 from __future__ import annotations
 
-import json
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,10 +37,11 @@ from volec.completion.complete import SHIPPED_CHECKPOINT, CompletionConfig, comp
 from volec.completion.model import SymmCompletion
 from volec.dense import PRESETS as DENSE_PRESETS
 from volec.dense import DenseConfig
-from volec.errors import OutputExistsError, VolecError
+from volec.errors import VolecError
 from volec.geometry import horizontal_axes
-from volec.io import write_bytes_atomic, write_json_atomic, write_text_atomic
-from volec.masking import MaskingConfig, require_masks
+from volec.io import folder_lock, write_bytes_atomic, write_json_atomic, write_text_atomic
+from volec.masking import PRESETS as MASKING_PRESETS
+from volec.masking import MaskingConfig, check_masks, require_masks, usable_masks
 from volec.meshing import PRESETS as MESHING_PRESETS
 from volec.meshing import (
     MeshingConfig,
@@ -52,16 +56,24 @@ from volec.meshing import (
     with_normals,
 )
 from volec.pipeline import (
-    config_record,
-    ensure_dense,
-    ensure_masking,
-    ensure_sfm,
+    StageResults,
+    check_outside_capture,
+    preflight,
+    read_record,
+    run_stages,
+    say,
+    stale_reasons,
 )
 from volec.pointcloud import PointCloud, write_ply
-from volec.sfm import SfmConfig, SfmResult
+from volec.provenance import capture_identity, file_digest, json_data, stage_provenance
+from volec.scale import ScaleCheck, ScaleConfig, require_metric
+from volec.sfm import SfmConfig
+from volec.trust import Reason, TrustConfig, TrustFacts, assess
 from volec.volume import volume_ml
 
 RESULT_FILE = "result.json"
+MODULES = ("volec.estimate",)
+"""The code that makes an estimate (with everything it imports: all the stages)."""
 
 
 @dataclass(frozen=True)
@@ -72,7 +84,7 @@ class EstimateConfig:
     """Complete the masked cloud with the network before meshing (False: the VolE-style
     baseline, where only the support plane and Poisson close the unseen underside)."""
     checkpoint: str = ""
-    """Completion checkpoint; empty: the one shipped in ``data/completion``."""
+    """Completion checkpoint; empty: the one shipped with volec."""
     sfm: SfmConfig = field(default_factory=SfmConfig)
     dense: DenseConfig = field(default_factory=DenseConfig)
     masking: MaskingConfig = field(default_factory=MaskingConfig)
@@ -87,16 +99,20 @@ class EstimateConfig:
     meshing: MeshingConfig = field(default_factory=MeshingConfig)
     carve_silhouettes: bool = True
     """Intersect the mesh with the visual hull of the food masks (see :mod:`volec.meshing`)."""
-    min_registered_fraction: float = 0.8
-    """Fewer registered frames than this fraction is a warning in the result."""
-    min_orbit_deg: float = 180.0
-    """Cameras spanning less azimuth than this around the food is a warning: the unseen side
-    is then a guess (a 100-degree arc over-estimated the cake by a third)."""
+    trust: TrustConfig = field(default_factory=TrustConfig)
+    """When the estimate is flagged ``trusted: false`` (see :mod:`volec.trust`)."""
+    scale: ScaleConfig = field(default_factory=ScaleConfig)
+    """Which camera distances are plausible as metres (see :mod:`volec.scale`)."""
+    completion_share_pitch_m: float = 0.002
+    """Grid spacing of the interior samples that measure the share of the volume decided by
+    the network's points."""
 
 
 PRESETS: dict[str, EstimateConfig] = {
     "default": EstimateConfig(),
     "fast": EstimateConfig(dense=DENSE_PRESETS["fast"], meshing=MESHING_PRESETS["fast"]),
+    # Masks from an automatic segmenter, or poses with more error (see volec.masking).
+    "tolerant_masks": EstimateConfig(masking=MASKING_PRESETS["tolerant"]),
 }
 
 
@@ -109,10 +125,33 @@ class FoodMesh:
     mesh: MeshResult
     volume_ml: float
     support: SupportPlane | None
+    support_problem: str | None
+    """Why no support plane was found (None when one was)."""
     completion_summary: dict[str, Any] | None
-    warnings: list[str]
+    completion_share: float | None
+    """Share of the mesh's volume nearer to the network's points than to observed ones
+    (None without completion)."""
     seconds: dict[str, float]
     """Wall time of ``completion_s`` (0 without) and ``meshing_s`` (support plane included)."""
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One volume estimate from the stage results, and how far it can be trusted."""
+
+    food: FoodMesh
+    reasons: list[Reason]
+    """Why the volume is not to be trusted (empty: trusted)."""
+    warnings: list[str]
+    """Everything a person should read: the reasons' messages first, then notes."""
+    orbit_coverage_deg: float
+    view_up: np.ndarray
+    """The support plane's normal, else the capture's up direction, else +z."""
+
+    @property
+    def trusted(self) -> bool:
+        """True when there is no reason to distrust the volume."""
+        return not self.reasons
 
 
 def checkpoint_path(cfg: EstimateConfig) -> Path:
@@ -130,21 +169,34 @@ def load_completion_model(cfg: EstimateConfig) -> SymmCompletion:
         raise VolecError(f"completion checkpoint not found: {e}") from e
 
 
+def completion_share(mesh: trimesh.Trimesh, cloud: PointCloud, observed_points: int,
+                     pitch_m: float) -> float:
+    """Share of the volume inside ``mesh`` whose nearest point of ``cloud`` is one of the
+    network's (those after the first ``observed_points``), on a grid of ``pitch_m``."""
+    from scipy.spatial import cKDTree
+
+    lo, hi = mesh.bounds
+    axes = [np.arange(lo[i] + pitch_m / 2, hi[i], pitch_m) for i in range(3)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    inside = grid[mesh.contains(grid)] if len(grid) else grid
+    if not len(inside):
+        return 0.0
+    nearest = cKDTree(cloud.xyz).query(inside)[1]
+    return float(np.mean(nearest >= observed_points))
+
+
 def food_mesh(masked: PointCloud, scene: PointCloud, up: np.ndarray | None,
               model: SymmCompletion | None, cfg: EstimateConfig,
               silhouettes: list[SilhouetteView] | None = None) -> FoodMesh:
     """Support plane, completion (when ``model`` is given) and a closed mesh of the food,
-    carved by ``silhouettes`` when given, with its volume. A missing support plane is a
-    warning, not an error: the mesh is then closed by Poisson alone, and the result says so;
-    so is a carving that removes much of the solid."""
-    warnings: list[str] = []
+    carved by ``silhouettes`` when given, with its volume. A missing support plane is not an
+    error: the mesh is then closed by Poisson alone, and :func:`estimate_from_stages` flags it."""
     start = time.perf_counter()
-    support = None
+    support, problem = None, None
     try:
         support = fit_support_plane(scene, masked, up, cfg.support)
     except MeshingError as e:
-        warnings.append(f"no support plane: {e}; the underside is closed by Poisson alone and "
-                        "the volume is less certain")
+        problem = str(e)
     cloud, summary = masked, None
     completion_s = 0.0
     if model is not None:
@@ -153,23 +205,23 @@ def food_mesh(masked: PointCloud, scene: PointCloud, up: np.ndarray | None,
         cloud, summary = completion.cloud, completion.summary
         completion_s = time.perf_counter() - t
     mesh = mesh_cloud(cloud, support, cfg.meshing, silhouettes)
-    carved = mesh.report.get("carved_fraction", 0.0)
-    if carved > cfg.meshing.max_carved_fraction:
-        warnings.append(f"the food masks carve {100 * carved:.0f} % of the reconstructed solid "
-                        "away: masks, poses and cloud disagree and the volume is uncertain")
     volume = volume_ml(mesh.mesh)
+    share = None
+    if model is not None:
+        share = completion_share(mesh.mesh, cloud, len(masked), cfg.completion_share_pitch_m)
     meshing_s = time.perf_counter() - start - completion_s
-    return FoodMesh(cloud, mesh, volume, support, summary, warnings,
+    return FoodMesh(cloud, mesh, volume, support, problem, summary, share,
                     {"completion_s": round(completion_s, 2), "meshing_s": round(meshing_s, 2)})
 
 
-def food_silhouettes(capture: Capture, sfm: SfmResult, cfg: EstimateConfig
+def food_silhouettes(capture: Capture, stages: StageResults, cfg: EstimateConfig
                      ) -> list[SilhouetteView] | None:
-    """The registered frames' food silhouettes for the meshing's carving; None when ``cfg``
-    turns carving off."""
+    """The food silhouettes of the registered frames with a usable mask, for the meshing's
+    carving; None when ``cfg`` turns carving off."""
     if not cfg.carve_silhouettes:
         return None
-    return silhouette_views(capture, sfm.T_world_from_cam, sfm.registered,
+    use = stages.sfm.registered & usable_masks(capture, stages.masked.report["unusable_masks"])
+    return silhouette_views(capture, stages.sfm.T_world_from_cam, use,
                             cfg.meshing.silhouette_max_views)
 
 
@@ -185,21 +237,58 @@ def orbit_coverage_deg(camera_centres: np.ndarray, target: np.ndarray, up: np.nd
     return float(360.0 - gaps.max())
 
 
-def _refuse_other_result(out_dir: Path, cfg: EstimateConfig, overwrite: bool) -> None:
-    path = out_dir / RESULT_FILE
-    if overwrite or not path.exists():
-        return
-    if json.loads(path.read_text()).get("config") != config_record(cfg):
-        raise OutputExistsError(f"{path} holds an estimate made with other settings; pass "
-                                "--overwrite (overwrite=True) to replace it, or choose "
-                                "another output folder")
+def capture_up(capture: Capture) -> np.ndarray | None:
+    """The capture's up direction where it states one (``world_up`` in transforms.json)."""
+    up = capture.metadata.get("world_up")
+    return None if up is None else np.asarray(up, float)
 
 
-def _check_outside_capture(capture: Capture, out_dir: Path) -> None:
-    root, out = Path(capture.root).resolve(), Path(out_dir).resolve()
-    if out == root or root in out.parents:
-        raise VolecError(f"the output folder {out_dir} is inside the capture {capture.root}; "
-                         "volec never writes into a capture: choose another folder")
+def _notes(capture: Capture, stages: StageResults, food: FoodMesh, scale: ScaleCheck | None,
+           use_completion: bool) -> list[str]:
+    """Warnings that are not trust reasons: things a person should know."""
+    notes = []
+    if food.support_problem is not None:
+        notes.append(f"no support plane: {food.support_problem}")
+    if scale is not None and scale.warning:
+        notes.append(scale.warning)
+    for name, why in stages.masked.report.get("unusable_masks", {}).items():
+        notes.append(f"the mask of {name} was left out: {why}")
+    if not use_completion:
+        notes.append("completion was off: the unseen underside is closed by the support plane "
+                     "and Poisson alone (the VolE-style baseline)")
+    return notes
+
+
+def estimate_from_stages(capture: Capture, stages: StageResults, model: SymmCompletion | None,
+                         cfg: EstimateConfig, silhouettes: list[SilhouetteView] | None = None,
+                         scale: ScaleCheck | None = None) -> Estimate:
+    """The volume estimate from finished stage results: support plane, completion (when
+    ``model`` is given), a closed mesh carved by ``silhouettes``, its volume, and the reasons
+    it is not to be trusted (:mod:`volec.trust`). The pure core of :func:`run_estimate` and of
+    the experiments."""
+    up = capture_up(capture)
+    food = food_mesh(stages.masked.cloud, stages.dense.cloud, up, model, cfg, silhouettes)
+    view_up = (np.asarray(food.support.normal) if food.support is not None
+               else up if up is not None else np.array([0.0, 0.0, 1.0]))
+    sfm = stages.sfm
+    centres = sfm.T_world_from_cam[sfm.registered][:, :3, 3]
+    coverage = orbit_coverage_deg(centres, food.mesh.mesh.centroid, view_up)
+    report = food.mesh.report
+    facts = TrustFacts(
+        frames=len(capture), registered=int(sfm.registered.sum()),
+        orbit_coverage_deg=coverage, support_found=food.support is not None,
+        carved_fraction=float(report.get("carved_fraction", 0.0)),
+        dropped_volume_ml=float(report.get("dropped_volume_ml", 0.0)),
+        volume_ml=food.volume_ml, completion_share=food.completion_share,
+        scale_estimates=tuple(float(sfm.summary.get(k, 0.0)) for k in
+                              ("scale_drift_model", "scale_short_baseline", "scale_sim3_all")),
+        unusable_masks=len(stages.masked.report.get("unusable_masks", {})),
+        far_point_fraction=report.get("far_points_dropped", 0) / max(report["points_in"], 1),
+    )
+    reasons = assess(facts, cfg.trust)
+    warnings = [r.message for r in reasons] + _notes(capture, stages, food, scale,
+                                                     model is not None)
+    return Estimate(food, reasons, warnings, coverage, view_up)
 
 
 def report_pictures(result: FoodMesh, up: np.ndarray, folder: Path, masked: PointCloud
@@ -221,14 +310,17 @@ def report_pictures(result: FoodMesh, up: np.ndarray, folder: Path, masked: Poin
 
 def report_markdown(result: dict[str, Any], pictures: dict[str, Path], out_dir: Path) -> str:
     """The human-readable report of an estimate."""
+    trust = ("**trusted**" if result["trusted"] else
+             "**not trusted**: " + "; ".join(r["message"] for r in result["reasons"]))
     lines = [
         "# volec estimate",
         "",
         f"**Volume: {result['volume_ml']:.1f} mL** "
-        f"({'with' if result['completion_used'] else 'without'} completion)",
+        f"({'with' if result['completion_used'] else 'without'} completion), {trust}",
         "",
         f"- capture: `{result['capture']}`",
         f"- frames used: {result['frames']['registered']} of {result['frames']['total']}",
+        f"- scale: {result['scale']['source']}",
         f"- mesh: {result['mesh']['faces']} faces, watertight, `mesh.ply` / `mesh.glb`",
         f"- support plane: {'found' if result['support_plane'] else 'not found'}",
         f"- volec {result['volec_version']}",
@@ -251,100 +343,124 @@ def report_markdown(result: dict[str, Any], pictures: dict[str, Path], out_dir: 
     return "\n".join(lines)
 
 
-def _progress(enabled: bool, message: str) -> None:
-    if enabled:
-        print(f"volec: {message}", file=sys.stderr, flush=True)
+def estimate_record(capture: Capture, stages: StageResults, est: Estimate, cfg: EstimateConfig,
+                    scale: ScaleCheck, seconds: dict[str, float]) -> dict[str, Any]:
+    """What ``result.json`` says of an estimate (its ``files`` and ``provenance`` are added
+    when it is written)."""
+    food = est.food
+    return {
+        "volume_ml": food.volume_ml,
+        "trusted": est.trusted,
+        "reasons": [r.record() for r in est.reasons],
+        "warnings": est.warnings,
+        "completion_used": food.completion_summary is not None,
+        "frames": {"total": len(capture), "registered": int(stages.sfm.registered.sum())},
+        "orbit_coverage_deg": round(est.orbit_coverage_deg, 1),
+        "scale": scale.record(),
+        "masks": {"source": "given",
+                  "unusable": stages.masked.report.get("unusable_masks", {})},
+        "stage_seconds": seconds,
+        "stages_reused": list(stages.reused),
+        "support_plane": None if food.support is None else food.support.record(),
+        "mesh": {k: food.mesh.report.get(k) for k in (
+            "faces", "vertices", "watertight", "grid_voxel_m", "cut_at_support",
+            "silhouette_views", "carved_fraction", "pieces_dropped", "dropped_volume_ml",
+            "far_points_dropped")},
+        "completion": food.completion_summary,
+        "completion_share": food.completion_share,
+        "capture": str(capture.root),
+        "checkpoint": (str(checkpoint_path(cfg)) if food.completion_summary is not None
+                       else None),
+        "volec_version": __version__,
+        "config": json_data(cfg),
+    }
+
+
+def result_provenance(identity: dict[str, Any], cfg: EstimateConfig,
+                      stages: StageResults | None) -> dict[str, Any]:
+    """The provenance of an estimate: the capture, the stages' records (unknown, and left
+    empty, before they ran), the completion checkpoint, the config and the code."""
+    upstream = {} if stages is None else stages.digests()
+    if cfg.use_completion and stages is not None:
+        upstream["checkpoint"] = file_digest(checkpoint_path(cfg))
+    return stage_provenance(identity, cfg, upstream, MODULES)
+
+
+def write_outputs(out_dir: Path, est: Estimate, masked: PointCloud) -> dict[str, str]:
+    """The clouds, meshes and report pictures of an estimate in ``out_dir``; returns the file
+    names that ``result.json`` lists."""
+    food = est.food
+    files = {"scene": "scene.ply", "food_masked": "food_masked.ply", "mesh_ply": "mesh.ply",
+             "mesh_glb": "mesh.glb", "report": "report.md"}
+    if food.completion_summary is not None:
+        write_ply(with_normals(food.cloud), out_dir / "food_completed.ply")
+        files["food_completed"] = "food_completed.ply"
+    write_bytes_atomic(out_dir / "mesh.ply", food.mesh.mesh.export(file_type="ply"))
+    write_bytes_atomic(out_dir / "mesh.glb", food.mesh.mesh.export(file_type="glb"))
+    pictures = report_pictures(food, est.view_up, out_dir / "report", masked)
+    files.update({f"picture_{k}": str(p.relative_to(out_dir)) for k, p in pictures.items()})
+    return files
+
+
+def _finished_result(out_dir: Path, wanted: dict[str, Any]) -> dict[str, Any] | None:
+    """The result in ``out_dir`` when it is exactly what this run would compute."""
+    record = read_record(out_dir / RESULT_FILE)
+    if record is None or stale_reasons(record, wanted, out_dir, RESULT_FILE):
+        return None
+    return record
 
 
 def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = None,
-                 overwrite: bool = False, progress: bool = True) -> dict[str, Any]:
+                 overwrite: bool = False, progress: bool = True,
+                 scale: ScaleCheck | None = None) -> dict[str, Any]:
     """Run every stage on ``capture`` into ``out_dir`` (see the module docstring) and return
-    the record written to ``result.json``."""
+    the record written to ``result.json``. ``scale``: why the capture is metric, when the
+    caller already checked (:func:`volec.scale.require_metric`; checked here otherwise).
+
+    Refused before any work: an output folder inside the capture, a capture that is not metric
+    (:class:`~volec.errors.ScaleError`), unusable masks, a folder holding results made from
+    other inputs (unless ``overwrite``), a folder another run is writing into. A finished
+    estimate made from exactly these inputs is returned as it is."""
     cfg = cfg or EstimateConfig()
     out_dir = Path(out_dir)
-    _check_outside_capture(capture, out_dir)
-    _refuse_other_result(out_dir, cfg, overwrite)
+    check_outside_capture(capture, out_dir)
+    scale = scale or require_metric(capture, cfg.scale)
     require_masks(capture)
+    check_masks(capture, cfg.masking.checks)
     model = load_completion_model(cfg) if cfg.use_completion else None
-    out_dir.mkdir(parents=True, exist_ok=True)
-    start = time.perf_counter()
-    seconds: dict[str, float] = {}
-    reused: list[str] = []
-    _progress(progress, f"[1/6] SfM on {len(capture)} frames")
-    t = time.perf_counter()
-    sfm, redone = ensure_sfm(capture, out_dir, cfg.sfm, overwrite)
-    seconds["sfm_s"] = round(time.perf_counter() - t, 2)
-    reused += [] if redone else ["sfm"]
-    _progress(progress, "[2/6] dense stereo")
-    t = time.perf_counter()
-    dense, redone = ensure_dense(capture, sfm, out_dir, cfg.dense, overwrite or redone, progress)
-    seconds["dense_s"] = round(time.perf_counter() - t, 2)
-    reused += [] if redone else ["dense"]
-    _progress(progress, "[3/6] masking")
-    t = time.perf_counter()
-    masked, redone = ensure_masking(capture, sfm, dense, out_dir, cfg.masking,
-                                    overwrite or redone)
-    seconds["masking_s"] = round(time.perf_counter() - t, 2)
-    reused += [] if redone else ["masking"]
-
-    up_list = capture.metadata.get("world_up")
-    up = np.asarray(up_list, float) if up_list is not None else None
-    _progress(progress, "[4/6] support plane" + (", completion" if model else "")
-              + " and meshing")
-    t = time.perf_counter()
-    silhouettes = food_silhouettes(capture, sfm, cfg)
-    seconds["silhouettes_s"] = round(time.perf_counter() - t, 2)
-    result = food_mesh(masked.cloud, dense.cloud, up, model, cfg, silhouettes)
-    seconds.update(result.seconds)
-
-    _progress(progress, "[5/6] writing the clouds, the mesh and the report")
-    t = time.perf_counter()
-    files = {"scene": "scene.ply", "food_masked": "food_masked.ply", "mesh_ply": "mesh.ply",
-             "mesh_glb": "mesh.glb", "report": "report.md"}
-    if model is not None:
-        write_ply(with_normals(result.cloud), out_dir / "food_completed.ply")
-        files["food_completed"] = "food_completed.ply"
-    write_bytes_atomic(out_dir / "mesh.ply", result.mesh.mesh.export(file_type="ply"))
-    write_bytes_atomic(out_dir / "mesh.glb", result.mesh.mesh.export(file_type="glb"))
-    view_up = (np.asarray(result.support.normal) if result.support is not None
-               else up if up is not None else np.array([0.0, 0.0, 1.0]))
-    pictures = report_pictures(result, view_up, out_dir / "report", masked.cloud)
-
-    warnings = list(result.warnings)
-    registered = int(sfm.summary["registered"])
-    if registered < cfg.min_registered_fraction * len(capture):
-        warnings.append(f"only {registered} of {len(capture)} frames were registered by SfM")
-    centres = sfm.T_world_from_cam[sfm.registered][:, :3, 3]
-    coverage = orbit_coverage_deg(centres, result.mesh.mesh.centroid, view_up)
-    if coverage < cfg.min_orbit_deg:
-        warnings.append(f"the cameras span only {coverage:.0f} degrees around the food "
-                        f"(less than {cfg.min_orbit_deg:.0f}): its unseen side is a guess and "
-                        "the volume is less certain")
-    if model is None:
-        warnings.append("completion was off: the unseen underside is closed by the support "
-                        "plane and Poisson alone (the VolE-style baseline)")
-    seconds["report_s"] = round(time.perf_counter() - t, 2)
-    seconds["total_s"] = round(time.perf_counter() - start, 2)
-    record = {
-        "volume_ml": result.volume_ml,
-        "completion_used": model is not None,
-        "frames": {"total": len(capture), "registered": registered},
-        "orbit_coverage_deg": round(coverage, 1),
-        "stage_seconds": seconds,
-        "stages_reused": reused,
-        "support_plane": None if result.support is None else result.support.record(),
-        "mesh": {k: result.mesh.report.get(k) for k in (
-            "faces", "vertices", "watertight", "grid_voxel_m", "cut_at_support",
-            "silhouette_views", "carved_fraction")},
-        "completion": result.completion_summary,
-        "warnings": warnings,
-        "files": files,
-        "capture": str(capture.root),
-        "checkpoint": str(checkpoint_path(cfg)) if model is not None else None,
-        "volec_version": __version__,
-        "config": config_record(cfg),
-    }
-    write_text_atomic(out_dir / "report.md", report_markdown(record, pictures, out_dir))
-    write_json_atomic(out_dir / RESULT_FILE, record)
-    _progress(progress, f"[6/6] done: {result.volume_ml:.1f} mL in {seconds['total_s']:.0f} s")
+    identity = capture_identity(capture)
+    with folder_lock(out_dir):
+        preflight(out_dir, {RESULT_FILE: result_provenance(identity, cfg, None)}, overwrite,
+                  "refuse")
+        start = time.perf_counter()
+        stages = run_stages(capture, out_dir, cfg.sfm, cfg.dense, cfg.masking, overwrite,
+                            progress=progress, identity=identity)
+        wanted = result_provenance(identity, cfg, stages)
+        finished = None if overwrite else _finished_result(out_dir, wanted)
+        if finished is not None:
+            say(progress, f"{out_dir / RESULT_FILE} is already finished: "
+                f"{finished['volume_ml']:.1f} mL")
+            return finished
+        (out_dir / RESULT_FILE).unlink(missing_ok=True)  # gone until the new one is complete
+        seconds = dict(stages.seconds)
+        say(progress, "support plane" + (", completion" if model else "") + " and meshing")
+        t = time.perf_counter()
+        silhouettes = food_silhouettes(capture, stages, cfg)
+        seconds["silhouettes_s"] = round(time.perf_counter() - t, 2)
+        est = estimate_from_stages(capture, stages, model, cfg, silhouettes, scale)
+        seconds.update(est.food.seconds)
+        say(progress, "writing the clouds, the mesh and the report")
+        t = time.perf_counter()
+        files = write_outputs(out_dir, est, stages.masked.cloud)
+        seconds["report_s"] = round(time.perf_counter() - t, 2)
+        seconds["total_s"] = round(time.perf_counter() - start, 2)
+        record = estimate_record(capture, stages, est, cfg, scale, seconds)
+        pictures = {k.removeprefix("picture_"): out_dir / v for k, v in files.items()
+                    if k.startswith("picture_")}
+        write_text_atomic(out_dir / "report.md", report_markdown(record, pictures, out_dir))
+        record["provenance"] = wanted
+        record["files"] = {name: file_digest(out_dir / name) for name in files.values()}
+        write_json_atomic(out_dir / RESULT_FILE, record)
+    say(progress, f"done: {est.food.volume_ml:.1f} mL in {seconds['total_s']:.0f} s"
+        + ("" if est.trusted else " (not trusted)"))
     return record

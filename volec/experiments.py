@@ -2,13 +2,20 @@
 
 In: a benchmark folder, item names, scenario names and stage configs. Out: one pandas row per
 (item, scenario) with the stage's errors against the ground truth and its wall time. Each run
-is cached as ``ROOT/ITEM-SCENARIO/work/<stage>_eval.json``, so a re-run only redoes what is
-missing; the captures themselves are generated on first use.
+is cached as ``ROOT/ITEM-SCENARIO/work/<stage>_eval.json``, keyed by the config, the digest of
+the code that computes the row (the stage's modules and everything they import, and this
+module) and, for completion, the checkpoint's digest: a re-run only redoes what is missing or
+what other code would compute differently. The stage results in the work folders are reused on
+the same terms (:mod:`volec.pipeline`, ``stale="recompute"``). The captures themselves are
+generated on first use, and again when the generator's code changes.
+
+Quick (CI-sized) and full runs use separate folders (:func:`volec.paths.experiment_dir`), so
+their rows never mix. The volume experiment runs the same core as ``volec estimate``
+(:func:`volec.estimate.estimate_from_stages`) and only adds scoring.
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import time
 from collections.abc import Callable
@@ -21,13 +28,16 @@ import pandas as pd
 
 from volec.capture import read_transforms_json
 from volec.dense import DenseConfig, run_dense, save_dense
+from volec.errors import ConfigError, UnknownNameError
 from volec.io import write_bytes_atomic, write_json_atomic
 from volec.masking import MaskingConfig, mask_cloud, save_masking
 from volec.metrics import chamfer_distance, cloud_scores, sample_surface
-from volec.pipeline import config_record, ensure_sfm
-from volec.sfm import SfmConfig, evaluate_sfm, run_sfm
+from volec.pipeline import config_record, run_sfm_stage, run_stages
+from volec.provenance import code_identity, file_digest, module_digest
+from volec.sfm import SfmConfig, evaluate_sfm
 from volec.synth import PRESETS as SYNTH_PRESETS
 from volec.synth import SynthConfig, load_ground_truth_mesh, write_synthetic_capture
+from volec.synth.generate import is_current
 
 if TYPE_CHECKING:
     from volec.estimate import EstimateConfig
@@ -57,12 +67,19 @@ def scenarios(quick: bool) -> dict[str, Scenario]:
 
 
 def ensure_capture(root: Path, item: str, scenario: Scenario) -> Path:
-    """The synthetic capture folder for (item, scenario), generated if missing."""
+    """The synthetic capture folder for (item, scenario), generated if missing or made with
+    another config or generator code (then its work folder goes too)."""
     out = Path(root) / f"{item}-{scenario.name}"
-    truth = out / "ground_truth" / "truth.json"
-    if not truth.exists() or json.loads(truth.read_text())["config"] != scenario.synth.recorded():
+    if not is_current(out, scenario.synth):
         write_synthetic_capture(item, out, scenario.synth, overwrite=True, progress=False)
     return out
+
+
+def row_key(config: dict[str, Any], *modules: str, **extra: Any) -> dict[str, Any]:
+    """The cache key of an experiment row: its config, the code of ``modules`` (with all they
+    import) and of this module, and ``extra`` (e.g. a checkpoint's digest)."""
+    return {"config": config, "code": code_identity(*modules),
+            "experiment_code": module_digest(__name__), **extra}
 
 
 def _cached(cache: Path, key: dict[str, Any], key_field: str = "key") -> dict[str, Any] | None:
@@ -97,14 +114,20 @@ def sfm_row(root: Path, item: str, scenario: Scenario, cfg: SfmConfig) -> dict[s
         reported = read_transforms_json(out / "capture")
         exact = read_transforms_json(out / "ground_truth" / "transforms_exact.json",
                                      check_image_sizes=False)
-        start = time.perf_counter()
-        result = run_sfm(reported, out / "work", cfg)
+        # the stage is reused when another experiment already ran it from the same inputs;
+        # its steps' wall times are those recorded when it ran
+        result, _ = run_sfm_stage(reported, out / "work", cfg, stale="recompute")
         return {"item": item, "scenario": scenario.name, "frames": len(reported),
-                "wall_s": time.perf_counter() - start,
+                "wall_s": float(sum(result.summary["timings_s"].values())),
                 **evaluate_sfm(result, exact, reported),
                 **{f"{k}_s": v for k, v in result.summary["timings_s"].items()}}
 
-    return cached_row(out / "work" / SFM_CACHE, config_record(cfg), run, "sfm_config")
+    return cached_row(out / "work" / SFM_CACHE, sfm_key(cfg), run)
+
+
+def sfm_key(cfg: SfmConfig) -> dict[str, Any]:
+    """The cache key of an SfM row."""
+    return row_key(config_record(cfg), "volec.sfm")
 
 
 def sfm_experiment(
@@ -114,13 +137,12 @@ def sfm_experiment(
     """SfM errors and wall time per (item, scenario), cached per run and config; runs not
     cached go to ``workers`` processes (:func:`map_items`).
 
-    The cache is keyed by the config, not by volec's code: after changing the SfM code,
-    delete ``ROOT/*/work`` to measure it again.
+    The cache is keyed by the config and the code (:func:`row_key`).
     """
     cfg = cfg or SfmConfig()
     runs = [(item, scenario) for scenario in scenario_list for item in items]
-    rows = [_cached(root / f"{item}-{sc.name}" / "work" / SFM_CACHE, config_record(cfg),
-                    "sfm_config") for item, sc in runs]
+    rows = [_cached(root / f"{item}-{sc.name}" / "work" / SFM_CACHE, sfm_key(cfg))
+            for item, sc in runs]
     todo = [n for n, row in enumerate(rows) if row is None]
     computed = map_items(sfm_row, [(root, *runs[n], cfg) for n in todo],
                          [f"{runs[n][0]} {runs[n][1].name}" for n in todo], workers, progress)
@@ -169,14 +191,15 @@ def dense_experiment(
 
     ``poses="refined"`` uses the SfM stage's poses (run or reused in ``ITEM-SCENARIO/work``),
     as the pipeline does; ``poses="exact"`` uses the exact ones (in ``work-exact``), which
-    separates the stereo's own error from the poses'. Cached per run and configs in
-    ``dense_eval.json`` of the work folder (like :func:`sfm_experiment`, not keyed by code).
+    separates the stereo's own error from the poses'. Cached per run in ``dense_eval.json`` of
+    the work folder, keyed by the configs and the code (:func:`row_key`).
     """
     if poses not in ("refined", "exact"):
-        raise ValueError("poses must be 'refined' or 'exact'")
+        raise ConfigError("poses must be 'refined' or 'exact'")
     dense_cfg, mask_cfg = dense_cfg or DenseConfig(), mask_cfg or MaskingConfig()
-    key = {"sfm": config_record(sfm_cfg or SfmConfig()), "dense": config_record(dense_cfg),
-           "masking": config_record(mask_cfg), "poses": poses}
+    key = row_key({"sfm": config_record(sfm_cfg or SfmConfig()), "dense": config_record(dense_cfg),
+                   "masking": config_record(mask_cfg), "poses": poses},
+                  "volec.sfm", "volec.dense", "volec.masking", "volec.metrics")
     rows = []
     for item in items:
         out = ensure_capture(root, item, scenario)
@@ -186,24 +209,26 @@ def dense_experiment(
             capture = read_transforms_json(out / "capture")
             exact = read_transforms_json(out / "ground_truth" / "transforms_exact.json",
                                          check_image_sizes=False)
-            sfm, _ = ensure_sfm(capture, out / "work", sfm_cfg)
-            if poses == "refined":
-                T, registered = sfm.T_world_from_cam, sfm.registered
+            if poses == "refined":  # the pipeline's stages, reused by the volume experiment
+                stages = run_stages(capture, work, sfm_cfg, dense_cfg, mask_cfg,
+                                    stale="recompute", progress=False)
+                dense, masked = stages.dense, stages.masked
             else:
+                sfm, _ = run_sfm_stage(capture, out / "work", sfm_cfg, stale="recompute")
                 T = np.stack([f.T_world_from_cam for f in exact.frames])
                 registered = np.ones(len(capture), bool)
-            start = time.perf_counter()
-            dense = run_dense(capture, T, registered, sfm.points_xyz, dense_cfg, progress=False)
-            dense_s = time.perf_counter() - start
-            start = time.perf_counter()
-            masked = mask_cloud(dense.cloud, capture, T, registered, mask_cfg)
-            mask_s = time.perf_counter() - start
-            save_dense(work, dense)
-            save_masking(work, masked)
+                dense = run_dense(capture, T, registered, sfm.points_xyz, dense_cfg,
+                                  progress=False)
+                masked = mask_cloud(dense.cloud, capture, T, registered, mask_cfg)
+                save_dense(work, dense)
+                save_masking(work, masked)
             scores = cloud_scores(masked.cloud.xyz, load_ground_truth_mesh(out), exact)
             report = masked.report
+            # wall times as the stages recorded them when they ran
             return {"item": item, "scenario": scenario.name, "poses": poses,
-                    "frames": len(capture), "dense_s": dense_s, "mask_s": mask_s,
+                    "frames": len(capture),
+                    "dense_s": float(sum(dense.summary["timings_s"].values())),
+                    "mask_s": report["seconds"],
                     **{f"{k}_s": v for k, v in dense.summary["timings_s"].items()},
                     "scene_points": len(dense.cloud), "food_points": len(masked.cloud),
                     "removed_outside_mask": report["removed_outside_mask"],
@@ -246,11 +271,6 @@ def dense_table(raw: pd.DataFrame) -> pd.DataFrame:
 # ----------------------------------------------------------------------------- completion
 
 
-def _file_digest(path: Path) -> str:
-    """A short content digest of a file (cache keys of results that depend on it)."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]
-
-
 def completion_test_views(quick: bool, views: int = 2) -> list[dict[str, Any]]:
     """Partial views the network never trained on: held-out shapes of the training families
     (seeds from 2000) and the 21 benchmark items (kinds it never saw). Each entry has
@@ -282,19 +302,35 @@ def completion_test_views(quick: bool, views: int = 2) -> list[dict[str, Any]]:
     return out
 
 
+def pipeline_completion() -> Any:
+    """The completion settings ``volec estimate`` uses (a CompletionConfig)."""
+    from volec.estimate import EstimateConfig
+
+    return EstimateConfig().completion
+
+
 def completion_experiment(checkpoint: Path, root: Path, quick: bool) -> pd.DataFrame:
     """Chamfer distances (L1 in mm, L2 in mm^2) to the complete surface of: the partial view,
     the mirror baseline (with the support plane), the network's points alone, and the
-    completed cloud (partial + network), per test view; with the network's and the mirror's
-    time. Cached per view in ``root/<checkpoint digest>/``."""
-    from volec.completion.complete import CompletionConfig, complete_cloud
+    completed cloud as the pipeline makes it (partial + the network's points that fill what is
+    missing, :func:`pipeline_completion`), per test view; with the network's and the mirror's
+    time. Cached per view in ``root/quick`` or ``root/full``, keyed by the checkpoint's digest,
+    the settings and the code."""
+    from dataclasses import replace
+
+    from volec.completion.complete import complete_cloud
     from volec.completion.mirror import mirror_complete
     from volec.completion.train import load_checkpoint
     from volec.metrics import chamfer_distance
     from volec.pointcloud import PointCloud
 
-    digest = _file_digest(checkpoint)
+    digest = file_digest(checkpoint)
     model, _ = load_checkpoint(checkpoint)
+    pipeline_cfg = pipeline_completion()
+    network_cfg = replace(pipeline_cfg, merge_partial=False)
+    key = row_key(config_record(pipeline_cfg), "volec.completion.complete",
+                  "volec.completion.mirror", "volec.completion.data", "volec.metrics",
+                  "volec.synth.generate", checkpoint=digest)
     rows = []
     for view in completion_test_views(quick):
 
@@ -306,9 +342,10 @@ def completion_experiment(checkpoint: Path, root: Path, quick: bool) -> pd.DataF
             mirrored = mirror_complete(partial, up=np.array([0.0, 0.0, 1.0]))
             row["mirror_s"] = time.perf_counter() - start
             start = time.perf_counter()
-            done = complete_cloud(PointCloud(partial), model, CompletionConfig())
+            network = complete_cloud(PointCloud(partial), model, network_cfg)
             row["network_s"] = time.perf_counter() - start
-            clouds = {"partial": partial, "mirror": mirrored, "network": done.predicted_xyz,
+            done = complete_cloud(PointCloud(partial), model, pipeline_cfg)
+            clouds = {"partial": partial, "mirror": mirrored, "network": network.predicted_xyz,
                       "completed": done.cloud.xyz}
             for name, xyz in clouds.items():
                 l1, l2 = chamfer_distance(xyz, complete)
@@ -316,8 +353,8 @@ def completion_experiment(checkpoint: Path, root: Path, quick: bool) -> pd.DataF
                 row[f"cd_l2_{name}_mm2"] = l2 * 1e6
             return row
 
-        cache = Path(root) / digest / f"{view['name']}-{view['view']}.json"
-        rows.append(cached_row(cache, {"checkpoint": digest}, run))
+        cache = Path(root) / ("quick" if quick else "full") / f"{view['name']}-{view['view']}.json"
+        rows.append(cached_row(cache, key, run))
     return pd.DataFrame(rows)
 
 
@@ -344,8 +381,9 @@ def completion_table(raw: pd.DataFrame) -> pd.DataFrame:
 def completion_examples(checkpoint: Path, names: list[str], quick: bool
                         ) -> dict[str, dict[str, np.ndarray]]:
     """For the first test view of each named shape or item: its partial cloud, the mirror
-    baseline, the network's completed cloud and the complete surface samples (metres)."""
-    from volec.completion.complete import CompletionConfig, complete_cloud
+    baseline, the completed cloud as the pipeline makes it and the complete surface samples
+    (metres)."""
+    from volec.completion.complete import complete_cloud
     from volec.completion.mirror import mirror_complete
     from volec.completion.train import load_checkpoint
     from volec.pointcloud import PointCloud
@@ -354,11 +392,11 @@ def completion_examples(checkpoint: Path, names: list[str], quick: bool
     chosen = {v["name"]: v for v in completion_test_views(quick) if v["view"] == 0}
     missing = [n for n in names if n not in chosen]
     if missing:
-        raise KeyError(f"not in the test views: {', '.join(missing)}")
+        raise UnknownNameError(f"not in the test views: {', '.join(missing)}")
     out = {}
     for name in names:
         partial = chosen[name]["partial"]
-        done = complete_cloud(PointCloud(partial), model, CompletionConfig())
+        done = complete_cloud(PointCloud(partial), model, pipeline_completion())
         out[name] = {"partial": partial,
                      "mirror": mirror_complete(partial, up=np.array([0.0, 0.0, 1.0])),
                      "network": done.cloud.xyz, "complete": chosen[name]["complete"]}
@@ -417,11 +455,17 @@ VOLUME_CACHE = "volume_eval.json"
 def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
                key: dict[str, Any], workers: int = 1) -> dict[str, Any]:
     """One item of :func:`volume_experiment`, computed and cached under ``key``; ``workers``
-    (how many items ran at once, sharing the cores) is recorded with the times."""
-    from volec.estimate import food_mesh, food_silhouettes, load_completion_model
+    (how many items ran at once, sharing the cores) is recorded with the times.
+
+    The estimate is :func:`volec.estimate.estimate_from_stages`, exactly what ``volec estimate``
+    runs, once without and once with completion on the same stage results; the ground truth is
+    read only to score it."""
+    from dataclasses import replace
+
+    from volec.estimate import estimate_from_stages, food_silhouettes, load_completion_model
     from volec.meshing import with_normals
-    from volec.pipeline import dense_and_mask
     from volec.pointcloud import write_ply
+    from volec.scale import require_metric
     from volec.synth import load_truth
 
     out = ensure_capture(root, item, scenario)
@@ -430,26 +474,28 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
     def run() -> dict[str, Any]:
         model = load_completion_model(cfg)
         capture = read_transforms_json(out / "capture")
-        sfm, dense, masked = dense_and_mask(capture, work, cfg.sfm, cfg.dense, cfg.masking,
-                                            progress=False)
-        truth_mesh = load_ground_truth_mesh(out)
+        scale = require_metric(capture, cfg.scale)
+        stages = run_stages(capture, work, cfg.sfm, cfg.dense, cfg.masking, stale="recompute",
+                            progress=False)
+        sfm, dense, masked = stages.sfm, stages.dense, stages.masked
+        start = time.perf_counter()
+        silhouettes = food_silhouettes(capture, stages, cfg)
+        silhouettes_s = time.perf_counter() - start
+        truth_mesh = load_ground_truth_mesh(out)  # scoring only, after the estimate's inputs
         truth_points = sample_surface(truth_mesh, 20000, seed=0)
-        truth = load_truth(out)
-        up = np.asarray(truth["world_up"], float)
         row: dict[str, Any] = {
-            "item": item, "label": truth["label"], "scenario": scenario.name,
+            "item": item, "label": load_truth(out)["label"], "scenario": scenario.name,
             "frames": len(capture), "registered": int(sfm.registered.sum()),
             "gt_ml": float(truth_mesh.volume * 1e6), "workers": workers,
             "sfm_s": float(sum(sfm.summary["timings_s"].values())),
             "dense_s": float(sum(dense.summary["timings_s"].values())),
-            # stage records made before masking timed itself have no time
             "masking_s": masked.report.get("seconds", np.nan),
+            "silhouettes_s": silhouettes_s,
         }
-        start = time.perf_counter()
-        silhouettes = food_silhouettes(capture, sfm, cfg)
-        row["silhouettes_s"] = time.perf_counter() - start
         for tag, net in (("no_completion", None), ("completion", model)):
-            made = food_mesh(masked.cloud, dense.cloud, up, net, cfg, silhouettes)
+            variant = replace(cfg, use_completion=net is not None)
+            est = estimate_from_stages(capture, stages, net, variant, silhouettes, scale)
+            made = est.food
             write_bytes_atomic(work / f"mesh_{tag}.ply", made.mesh.mesh.export(file_type="ply"))
             if net is not None:
                 write_ply(with_normals(made.cloud), work / "food_completed.ply")
@@ -460,7 +506,10 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
                     f"{tag}_cloud_chamfer_mm": 1000 * cloud_l1,
                     f"{tag}_support_found": made.support is not None,
                     f"{tag}_carved_fraction": made.mesh.report.get("carved_fraction", 0.0),
-                    f"{tag}_warnings": len(made.warnings),
+                    f"{tag}_trusted": est.trusted,
+                    f"{tag}_reasons": ",".join(r.code for r in est.reasons),
+                    f"{tag}_warnings": len(est.warnings),
+                    f"{tag}_completion_share": made.completion_share,
                     **{f"{tag}_{k}": v for k, v in made.seconds.items()}}
         return row
 
@@ -475,15 +524,17 @@ def volume_experiment(root: Path, items: list[str], scenario: Scenario,
     SfM, dense and masking run (or are reused) in ``ROOT/ITEM-SCENARIO/work``, as in
     :func:`dense_experiment`; both meshes are saved there (``mesh_completion.ply``,
     ``mesh_no_completion.ply``, ``food_completed.ply``). A row has the true and estimated
-    volumes, the Chamfer distance of each mesh to the true surface, and each stage's wall time
-    (SfM and dense from their stage records, measured when they ran). Cached per item in
-    ``volume_eval.json``, keyed by the config and the checkpoint's digest; items not cached
-    run on ``workers`` processes (:func:`map_items`).
+    volumes, whether each estimate is trusted (and the reasons' codes), the Chamfer distance of
+    each mesh to the true surface, and each stage's wall time (SfM and dense from their stage
+    records, measured when they ran). Cached per item in ``volume_eval.json``, keyed by the
+    config, the checkpoint's digest and the code (:func:`row_key`); items not cached run on
+    ``workers`` processes (:func:`map_items`).
     """
     from volec.estimate import EstimateConfig, checkpoint_path
 
     cfg = cfg or EstimateConfig()
-    key = {"config": config_record(cfg), "checkpoint": _file_digest(checkpoint_path(cfg))}
+    key = row_key(config_record(cfg), "volec.estimate", "volec.metrics",
+                  checkpoint=file_digest(checkpoint_path(cfg)))
     rows = {item: _cached(root / f"{item}-{scenario.name}" / "work" / VOLUME_CACHE, key)
             for item in items}
     todo = [item for item in items if rows[item] is None]

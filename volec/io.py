@@ -16,7 +16,9 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from volec.errors import OutputExistsError
+from volec.errors import BusyError, OutputExistsError
+
+LOCK_FILE = ".volec.lock"
 
 
 def _file_mode() -> int:
@@ -96,3 +98,32 @@ def fill_folder_atomic(final: Path, fill: Callable[[Path], None], overwrite: boo
     with atomic_folder(final, overwrite=overwrite) as tmp:
         fill(tmp)
     return Path(final)
+
+
+@contextmanager
+def folder_lock(folder: Path) -> Iterator[Path]:
+    """Hold an exclusive lock on ``folder`` (created if missing) while the block runs: a second
+    volec run into the same folder is refused with :class:`BusyError` instead of mixing its
+    files with the first one's. The lock is the operating system's (``flock`` on
+    ``folder/.volec.lock``), so a run that dies releases it."""
+    import fcntl
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / LOCK_FILE
+    with open(path, "a+") as f:
+        try:
+            fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            f.seek(0)
+            holder = f.read().strip() or "unknown"
+            raise BusyError(f"another volec run ({holder}) is writing into {folder}; wait for it "
+                            "to finish, or choose another output folder") from None
+        f.seek(0)
+        f.truncate()
+        f.write(f"pid {os.getpid()}")
+        f.flush()
+        try:
+            yield folder
+        finally:
+            fcntl.flock(f.fileno(), fcntl.LOCK_UN)

@@ -10,7 +10,9 @@ The rule is the paper's: a food point projects inside the food mask in every vie
 (P is the intersection of the mask hits). That holds whether or not the point is occluded in
 the view, because a mask is the silhouette of the whole item, so no visibility test is needed.
 ``min_inside_fraction`` below 1 relaxes it for imperfect masks or poses; the masks can be
-grown by a few pixels for the same reason.
+grown by a few pixels for the same reason. One bad mask must not remove food, so a point may
+fall outside the masks of ``max_outside_views`` views and still be food, and masks that cannot
+be a food silhouette (empty, the whole frame, inverted: :func:`check_masks`) take no part.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ import numpy as np
 from scipy import ndimage
 
 from volec.capture import Capture, read_mask
-from volec.errors import VolecError
+from volec.errors import ConfigError, VolecError
 from volec.pointcloud import PointCloud, read_cloud_record, write_cloud_record
 
 log = logging.getLogger(__name__)
@@ -33,6 +35,22 @@ log = logging.getLogger(__name__)
 
 class MaskingError(VolecError):
     """The masks could not select a food cloud."""
+
+
+@dataclass(frozen=True)
+class MaskCheckConfig:
+    """What makes a mask unusable as a food silhouette."""
+
+    min_area_fraction: float = 0.0005
+    """A mask covering less of its image than this is empty (an orbit always sees the food)."""
+    max_area_fraction: float = 0.9
+    """A mask covering more than this is the whole frame, not a silhouette."""
+    max_border_fraction: float = 0.5
+    """A mask covering more than this share of the image's border pixels is inverted (food
+    black on white) or the food is cut by the frame on most sides."""
+    max_bad_fraction: float = 0.2
+    """More unusable masks than this share of the frames is an error: the masks as a whole
+    are wrong."""
 
 
 @dataclass(frozen=True)
@@ -47,6 +65,12 @@ class MaskingConfig:
     mask_dilation_px: int = 1
     """Masks are grown by this many pixels before the test, absorbing sub-pixel pose error at
     the silhouette."""
+    max_outside_views: int = 1
+    """A point outside the food mask in at most this many of the views that see it is still
+    food, whatever ``min_inside_fraction`` says: one frame's bad mask (a missed chunk) cannot
+    remove food."""
+    checks: MaskCheckConfig = field(default_factory=MaskCheckConfig)
+    """Which masks are unusable (:func:`check_masks`)."""
 
 
 PRESETS: dict[str, MaskingConfig] = {
@@ -54,6 +78,47 @@ PRESETS: dict[str, MaskingConfig] = {
     # For masks from an automatic segmenter or poses with more error.
     "tolerant": MaskingConfig(min_inside_fraction=0.9, mask_dilation_px=3),
 }
+
+
+def mask_problem(mask: np.ndarray, cfg: MaskCheckConfig) -> str | None:
+    """Why the boolean ``mask`` cannot be a food silhouette, or None when it can."""
+    area = float(mask.mean())
+    if area < cfg.min_area_fraction:
+        return f"empty ({100 * area:.2f} % of the image)"
+    if area > cfg.max_area_fraction:
+        return f"covers {100 * area:.0f} % of the image (the whole frame, not a silhouette)"
+    border = np.concatenate([mask[0], mask[-1], mask[1:-1, 0], mask[1:-1, -1]])
+    if border.mean() > cfg.max_border_fraction:
+        return (f"covers {100 * border.mean():.0f} % of the image border (inverted: food must "
+                "be white on black, or the food is cut by the frame)")
+    return None
+
+
+def check_masks(capture: Capture, cfg: MaskCheckConfig | None = None) -> dict[str, str]:
+    """The frames whose mask is unusable (:func:`mask_problem`), by name, with why. Raises
+    :class:`MaskingError` naming them when more than ``max_bad_fraction`` of the frames are."""
+    cfg = cfg or MaskCheckConfig()
+    require_masks(capture)
+    bad = {}
+    for frame in capture.frames:
+        problem = mask_problem(read_mask(frame), cfg)
+        if problem is not None:
+            bad[frame.name] = problem
+    if len(bad) > cfg.max_bad_fraction * len(capture):
+        listing = "; ".join(f"{frame_mask(capture, n)}: {why}" for n, why in list(bad.items())[:5])
+        raise MaskingError(
+            f"{len(bad)} of {len(capture)} food masks are unusable ({listing}"
+            f"{'; ...' if len(bad) > 5 else ''}); fix or regenerate the masks"
+        )
+    for name, why in bad.items():
+        log.warning("mask of %s is unusable and not used: %s", name, why)
+    return bad
+
+
+def frame_mask(capture: Capture, name: str) -> str:
+    """The mask file of the frame called ``name``, for messages."""
+    frame = next(f for f in capture.frames if f.name == name)
+    return str(frame.mask_path)
 
 
 @dataclass(eq=False)
@@ -92,6 +157,11 @@ def mask_votes(cloud: PointCloud, capture: Capture, T_world_from_cam: np.ndarray
     return seen, inside
 
 
+def usable_masks(capture: Capture, bad: dict[str, str]) -> np.ndarray:
+    """(N,) True for the frames whose mask is not among the ``bad`` ones."""
+    return np.array([f.name not in bad for f in capture.frames], bool)
+
+
 def require_masks(capture: Capture) -> None:
     """Raise :class:`MaskingError` unless every frame of ``capture`` has a food mask."""
     if not capture.has_masks:
@@ -107,17 +177,19 @@ def mask_cloud(cloud: PointCloud, capture: Capture, T_world_from_cam: np.ndarray
     """Keep the points of ``cloud`` that the food masks of the registered frames agree on."""
     cfg = cfg or MaskingConfig()
     if not 0.0 < cfg.min_inside_fraction <= 1.0:
-        raise ValueError("min_inside_fraction must be in (0, 1]")
-    require_masks(capture)
+        raise ConfigError("min_inside_fraction must be in (0, 1]")
     start = time.perf_counter()
-    use = np.asarray(registered, bool)
+    bad = check_masks(capture, cfg.checks)
+    use = np.asarray(registered, bool) & usable_masks(capture, bad)
     seen, inside = mask_votes(cloud, capture, T_world_from_cam, use, cfg.mask_dilation_px)
     enough_views = seen >= cfg.min_views
     # The small tolerance keeps 1.0 an exact "every view" without float trouble.
-    food = enough_views & (inside >= cfg.min_inside_fraction * seen - 1e-9)
+    allowed_outside = np.maximum(cfg.max_outside_views, (1.0 - cfg.min_inside_fraction) * seen)
+    food = enough_views & (seen - inside <= allowed_outside + 1e-9)
     report = {
         "input_points": len(cloud),
         "views": int(use.sum()),
+        "unusable_masks": bad,
         "removed_too_few_views": int((~enough_views).sum()),
         "removed_outside_mask": int((enough_views & ~food).sum()),
         "kept": int(food.sum()),

@@ -124,13 +124,17 @@ class MeshingConfig:
     silhouette_min_views: int = 2
     """A grid point is carved when this many views see it outside their mask (one bad mask
     or pose cannot carve the food)."""
-    max_carved_fraction: float = 0.25
-    """Carving away more than this fraction of the Poisson solid means the masks, poses and
-    cloud disagree: the result is flagged."""
     smoothing_iterations: int = 5
     """Taubin smoothing steps on the final mesh (the paper smooths 5 times)."""
     min_points: int = 500
     """Fewer points than this is refused."""
+    far_point_factor: float = 3.0
+    """Points farther from the cloud's median point than this times the 90th percentile of
+    that distance are strays (a mismatched depth, a crumb), not the item: they are dropped
+    before meshing and counted, so one of them cannot stretch the grid across the room."""
+    max_grid_points: int = 20_000_000
+    """A signed distance grid with more points than this is refused (at 1 mm, a 27 cm cube):
+    the cloud is not one food item at this resolution."""
 
 
 PRESETS: dict[str, MeshingConfig] = {
@@ -373,6 +377,15 @@ def _carve(field_m: np.ndarray, lower: np.ndarray, shape: tuple[int, int, int],
     return flat.reshape(shape)
 
 
+def within_reach(xyz: np.ndarray, factor: float) -> np.ndarray:
+    """(N,) True for the points no farther from the median point than ``factor`` times the
+    90th percentile of that distance (all of them when ``factor`` is 0)."""
+    if factor <= 0 or len(xyz) == 0:
+        return np.ones(len(xyz), bool)
+    distance = np.linalg.norm(xyz - np.median(xyz, axis=0), axis=1)
+    return distance <= factor * np.percentile(distance, 90)
+
+
 def mesh_cloud(cloud: PointCloud, support: SupportPlane | None = None,
                cfg: MeshingConfig | None = None,
                silhouettes: list[SilhouetteView] | None = None) -> MeshResult:
@@ -387,6 +400,9 @@ def mesh_cloud(cloud: PointCloud, support: SupportPlane | None = None,
     if not np.isfinite(cloud.xyz).all():
         raise MeshingError("the food cloud has non-finite coordinates")
     report: dict[str, Any] = {"points_in": len(cloud)}
+    near = within_reach(cloud.xyz, cfg.far_point_factor)
+    report["far_points_dropped"] = int((~near).sum())
+    cloud = cloud.subset(near)
     if support is not None:
         keep = support.height_m(cloud.xyz) > -cfg.below_support_m
         report["points_below_support"] = int((~keep).sum())
@@ -409,6 +425,13 @@ def mesh_cloud(cloud: PointCloud, support: SupportPlane | None = None,
     lower = span.min(axis=0) - margin
     shape = tuple(int(n) for n in np.ceil((span.max(axis=0) + margin - lower)
                                           / cfg.grid_voxel_m) + 1)
+    if np.prod(shape, dtype=float) > cfg.max_grid_points:
+        size_mm = (np.asarray(shape) - 1) * cfg.grid_voxel_m * 1000
+        raise MeshingError(
+            f"the food cloud spans {size_mm[0]:.0f} x {size_mm[1]:.0f} x {size_mm[2]:.0f} mm, "
+            f"a grid of {np.prod(shape, dtype=float):.3g} points at "
+            f"{cfg.grid_voxel_m * 1000:g} mm (the limit is {cfg.max_grid_points:.3g}): it is "
+            "not one food item; check the masks and the capture's scale")
     field_m = signed_distance_grid(surface, lower, shape, cfg.grid_voxel_m, cfg.inside_rays)
     if support is not None:
         axes = _grid_axes(lower, shape, cfg.grid_voxel_m)
@@ -422,7 +445,10 @@ def mesh_cloud(cloud: PointCloud, support: SupportPlane | None = None,
     pieces = mesh.split(only_watertight=True)
     report["pieces_dropped"] = max(0, len(pieces) - 1)
     if pieces:
-        mesh = max(pieces, key=lambda m: m.volume)
+        largest = max(pieces, key=lambda m: m.volume)
+        report["dropped_volume_ml"] = round(float(sum(m.volume for m in pieces)
+                                                  - largest.volume) * 1e6, 3)
+        mesh = largest
     if cfg.smoothing_iterations:
         trimesh.smoothing.filter_taubin(mesh, iterations=cfg.smoothing_iterations)
     report.update({"grid_shape": list(shape), "grid_voxel_m": cfg.grid_voxel_m,

@@ -40,6 +40,12 @@ def data_dir(start: Path | None = None) -> Path:
     return d
 
 
+def experiment_dir(quick: bool, start: Path | None = None) -> Path:
+    """Where the experiments keep their captures and work folders: ``data/bench-sfm`` or, in
+    quick mode, ``data/bench-sfm-quick``, so CI-sized results never mix with full ones."""
+    return data_dir(start) / ("bench-sfm-quick" if quick else "bench-sfm")
+
+
 def benchmark_dir(quick: bool, start: Path | None = None) -> Path:
     """Where the synthetic benchmark captures live: ``data/benchmark`` or, in quick mode,
     ``data/benchmark-quick`` (small captures that never mix with full-size ones)."""

@@ -1,23 +1,30 @@
-"""Running the stages in a work folder, reusing the finished ones.
+"""Running the stages in a work folder, reusing the finished ones, and only those.
 
-In: a :class:`~volec.capture.Capture`, a work folder and each stage's config. Out: the stage
-results, loaded from the work folder when a finished stage there was made with the same config,
-computed (and saved atomically) otherwise. A finished stage made with *other* settings is never
-replaced silently: that is an :class:`~volec.errors.OutputExistsError` unless ``overwrite``.
-A stage that is recomputed makes every later stage recompute too.
+In: a :class:`~volec.capture.Capture`, a work folder and each stage's config. Out:
+:class:`StageResults` (SfM, dense and masking results), each loaded from the work folder when
+a finished stage there was made from exactly this (:mod:`volec.provenance`: the same capture,
+the same upstream results, config and code, and its files unchanged), computed and saved
+otherwise (files first, record last).
+
+A work folder holding results made from anything else (another capture, other settings, other
+code) is never overwritten silently: :func:`preflight` refuses it before any work starts,
+naming what differs, unless ``overwrite``; with ``stale="recompute"`` (the experiments) such
+results are recomputed instead. A stage that is recomputed makes every later stage recompute.
 """
 
 from __future__ import annotations
 
 import json
 import logging
-from dataclasses import asdict
+import sys
+import time
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from volec.capture import Capture
 from volec.dense import DenseConfig, DenseResult, load_dense, run_dense, save_dense
-from volec.errors import OutputExistsError
+from volec.errors import OutputExistsError, VolecError
 from volec.masking import (
     MaskingConfig,
     MaskingResult,
@@ -26,89 +33,216 @@ from volec.masking import (
     require_masks,
     save_masking,
 )
+from volec.provenance import (
+    capture_identity,
+    differences,
+    file_problems,
+    json_data,
+    record_digest,
+    stage_provenance,
+)
 from volec.sfm import SfmConfig, SfmResult, load_sfm, run_sfm
 
 log = logging.getLogger(__name__)
 
+Stale = Literal["refuse", "recompute"]
+"""What to do with a finished stage made from something else: ``refuse`` (raise
+:class:`OutputExistsError`; the command line) or ``recompute`` it (the experiments)."""
+
+
+@dataclass(frozen=True)
+class Stage:
+    """Where a stage keeps its record, and the modules whose code computes it."""
+
+    name: str
+    record: str
+    """The record's path in the work folder (its files are relative to its folder)."""
+    modules: tuple[str, ...]
+
+
+STAGES = {
+    "sfm": Stage("sfm", "sfm/summary.json", ("volec.sfm",)),
+    "dense": Stage("dense", "dense.json", ("volec.dense",)),
+    "masking": Stage("masking", "masking.json", ("volec.masking",)),
+}
+
 
 def config_record(cfg: Any) -> dict[str, Any]:
     """A config dataclass as the JSON-able dict stage records store (tuples become lists)."""
-    return json.loads(json.dumps(asdict(cfg)))
+    return json_data(cfg)
 
 
-def reusable(record_path: Path, recorded_config: dict[str, Any] | None, cfg: Any,
-             overwrite: bool) -> bool:
-    """Whether the finished stage recorded at ``record_path`` can be reused for ``cfg``.
+def read_record(path: Path) -> dict[str, Any] | None:
+    """The JSON record at ``path``; None when there is none. A record that is not valid JSON
+    (an edited or damaged file) is an :class:`OutputExistsError` naming it."""
+    path = Path(path)
+    if not path.exists():
+        return None
+    try:
+        record = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise OutputExistsError(f"{path} is not valid JSON ({e}): an edited or damaged result; "
+                                "pass --overwrite to redo it, or choose another output "
+                                "folder") from None
+    if not isinstance(record, dict):
+        raise OutputExistsError(f"{path} is not a volec record; pass --overwrite to redo it, "
+                                "or choose another output folder")
+    return record
 
-    False when there is none or ``overwrite`` is set; raises :class:`OutputExistsError` when
-    it was made with other settings and ``overwrite`` is not set.
-    """
-    if overwrite or recorded_config is None:
+
+def check_outside_capture(capture: Capture, out_dir: Path) -> None:
+    """Raise unless ``out_dir`` lies outside the capture's folder: volec never writes into a
+    capture."""
+    root, out = Path(capture.root).resolve(), Path(out_dir).resolve()
+    if out == root or root in out.parents:
+        raise VolecError(f"the output folder {out_dir} is inside the capture {capture.root}; "
+                         "volec never writes into a capture: choose another folder")
+
+
+def stale_reasons(record: dict[str, Any], wanted: dict[str, Any], folder: Path,
+                  record_name: str, upstream: bool = True) -> list[str]:
+    """Why a finished stage with ``record`` is not what ``wanted`` (a provenance) would make;
+    empty when it can be reused. ``upstream=False`` ignores the upstream digests (whether an
+    earlier stage will be recomputed is not known yet)."""
+    recorded = record.get("provenance")
+    if not upstream and recorded is not None:
+        recorded = {**recorded, "upstream": wanted["upstream"]}
+    return differences(recorded, wanted) + file_problems(record, folder, record_name)
+
+
+def _refuse(path: Path, reasons: list[str]) -> None:
+    raise OutputExistsError(f"{path} holds a result that is not from this run's inputs: "
+                            f"{'; '.join(reasons)}. Pass --overwrite (overwrite=True) to redo "
+                            "it, or choose another output folder")
+
+
+def preflight(work_dir: Path, wanted: dict[str, dict[str, Any]], overwrite: bool,
+              stale: Stale) -> None:
+    """Before any work: refuse (:class:`OutputExistsError`) a work folder whose finished
+    stages were made from another capture, config or code, or whose files were changed.
+    ``wanted``: stage name -> the provenance this run would give it (upstream not compared)."""
+    if overwrite or stale == "recompute":
+        return
+    for name, provenance in wanted.items():
+        path = Path(work_dir) / (STAGES[name].record if name in STAGES else name)
+        record = read_record(path)
+        if record is None:
+            continue
+        reasons = stale_reasons(record, provenance, path.parent, path.name, upstream=False)
+        if reasons:
+            _refuse(path, reasons)
+
+
+def _reusable(path: Path, wanted: dict[str, Any], overwrite: bool, stale: Stale) -> bool:
+    record = None if overwrite else read_record(path)
+    if record is None:
         return False
-    wanted = config_record(cfg)
-    if recorded_config == wanted:
+    reasons = stale_reasons(record, wanted, path.parent, path.name)
+    if not reasons:
         return True
-    changed = sorted(k for k in set(wanted) | set(recorded_config)
-                     if wanted.get(k) != recorded_config.get(k))
-    raise OutputExistsError(
-        f"{record_path} was made with other settings ({', '.join(changed)} differ); pass "
-        "--overwrite (overwrite=True) to redo it, or choose another work folder"
-    )
+    only_upstream = not stale_reasons(record, wanted, path.parent, path.name, upstream=False)
+    if stale == "refuse" and not only_upstream:
+        _refuse(path, reasons)
+    log.info("%s is stale (%s): recomputing", path, "; ".join(reasons))
+    return False
 
 
-def _recorded_config(path: Path) -> dict[str, Any] | None:
-    return json.loads(path.read_text()).get("config") if path.exists() else None
+def say(progress: bool, message: str) -> None:
+    if progress:
+        print(f"volec: {message}", file=sys.stderr, flush=True)
 
 
-def ensure_sfm(capture: Capture, work_dir: Path, cfg: SfmConfig | None = None,
-               overwrite: bool = False) -> tuple[SfmResult, bool]:
-    """(SfM result, whether it was computed now) for ``work_dir/sfm``."""
-    cfg = cfg or SfmConfig()
-    record = Path(work_dir) / "sfm" / "summary.json"
-    if reusable(record, _recorded_config(record), cfg, overwrite):
-        log.info("reusing the finished SfM stage in %s", record.parent)
-        return load_sfm(work_dir), False
-    return run_sfm(capture, work_dir, cfg), True
+@dataclass(frozen=True, eq=False)
+class StageResults:
+    """The results of the stages before meshing, and how they were obtained."""
+
+    sfm: SfmResult
+    dense: DenseResult
+    masked: MaskingResult
+    identity: dict[str, Any]
+    """The capture's identity (:func:`~volec.provenance.capture_identity`)."""
+    reused: tuple[str, ...]
+    """The stages loaded from the work folder instead of computed."""
+    seconds: dict[str, float] = field(default_factory=dict)
+    """Wall time of each stage in this run (``sfm_s``, ``dense_s``, ``masking_s``)."""
+
+    def digests(self) -> dict[str, str]:
+        """The digest of each stage's record, as downstream records name them."""
+        return {"sfm": record_digest(self.sfm.summary), "dense": record_digest(self.dense.summary),
+                "masking": record_digest(self.masked.report)}
 
 
-def ensure_dense(capture: Capture, sfm: SfmResult, work_dir: Path,
-                 cfg: DenseConfig | None = None, overwrite: bool = False,
-                 progress: bool = True) -> tuple[DenseResult, bool]:
-    """(dense result, whether it was computed now) for ``work_dir/scene.ply``."""
-    cfg = cfg or DenseConfig()
-    record = Path(work_dir) / "dense.json"
-    if reusable(record, _recorded_config(record), cfg, overwrite):
-        log.info("reusing the finished dense stage %s", record)
-        return load_dense(work_dir), False
-    result = run_dense(capture, sfm.T_world_from_cam, sfm.registered, sfm.points_xyz, cfg,
-                       progress=progress)
-    save_dense(work_dir, result)
-    return result, True
+def wanted_provenance(identity: dict[str, Any], sfm_cfg: SfmConfig, dense_cfg: DenseConfig,
+                      mask_cfg: MaskingConfig) -> dict[str, dict[str, Any]]:
+    """The provenance of each stage of a run on the capture with ``identity`` (upstream
+    digests left empty: they are known only once the earlier stage is done)."""
+    return {"sfm": stage_provenance(identity, sfm_cfg, {}, STAGES["sfm"].modules),
+            "dense": stage_provenance(identity, dense_cfg, {}, STAGES["dense"].modules),
+            "masking": stage_provenance(identity, mask_cfg, {}, STAGES["masking"].modules)}
 
 
-def ensure_masking(capture: Capture, sfm: SfmResult, dense: DenseResult, work_dir: Path,
-                   cfg: MaskingConfig | None = None, overwrite: bool = False
-                   ) -> tuple[MaskingResult, bool]:
-    """(masking result, whether it was computed now) for ``work_dir/food_masked.ply``."""
-    cfg = cfg or MaskingConfig()
-    record = Path(work_dir) / "masking.json"
-    if reusable(record, _recorded_config(record), cfg, overwrite):
-        log.info("reusing the finished masking stage %s", record)
-        return load_masking(work_dir), False
-    result = mask_cloud(dense.cloud, capture, sfm.T_world_from_cam, sfm.registered, cfg)
-    save_masking(work_dir, result)
-    return result, True
-
-
-def dense_and_mask(capture: Capture, work_dir: Path, sfm_cfg: SfmConfig | None = None,
-                   dense_cfg: DenseConfig | None = None, mask_cfg: MaskingConfig | None = None,
-                   overwrite: bool = False, progress: bool = True
-                   ) -> tuple[SfmResult, DenseResult, MaskingResult]:
-    """SfM (reused when finished), dense stereo and masking in ``work_dir``. A capture
-    without a mask for every frame is refused before any work is done."""
+def run_stages(capture: Capture, work_dir: Path, sfm_cfg: SfmConfig | None = None,
+               dense_cfg: DenseConfig | None = None, mask_cfg: MaskingConfig | None = None,
+               overwrite: bool = False, stale: Stale = "refuse", progress: bool = True,
+               identity: dict[str, Any] | None = None) -> StageResults:
+    """SfM, dense stereo and masking of ``capture`` in ``work_dir``, each reused when finished
+    from exactly these inputs (see the module docstring). A capture without a mask for every
+    frame, or a work folder of another capture, is refused before any work is done."""
+    sfm_cfg, dense_cfg = sfm_cfg or SfmConfig(), dense_cfg or DenseConfig()
+    mask_cfg = mask_cfg or MaskingConfig()
     require_masks(capture)
-    sfm, redone = ensure_sfm(capture, work_dir, sfm_cfg, overwrite)
-    dense, redone = ensure_dense(capture, sfm, work_dir, dense_cfg, overwrite or redone,
-                                 progress)
-    masked, _ = ensure_masking(capture, sfm, dense, work_dir, mask_cfg, overwrite or redone)
-    return sfm, dense, masked
+    work_dir = Path(work_dir)
+    identity = identity or capture_identity(capture)
+    wanted = wanted_provenance(identity, sfm_cfg, dense_cfg, mask_cfg)
+    preflight(work_dir, wanted, overwrite, stale)
+    seconds: dict[str, float] = {}
+    reused: list[str] = []
+
+    say(progress, f"SfM on {len(capture)} frames")
+    t = time.perf_counter()
+    if _reusable(work_dir / STAGES["sfm"].record, wanted["sfm"], overwrite, stale):
+        sfm = load_sfm(work_dir)
+        reused.append("sfm")
+    else:
+        sfm = run_sfm(capture, work_dir, sfm_cfg, provenance=wanted["sfm"])
+    seconds["sfm_s"] = round(time.perf_counter() - t, 2)
+
+    say(progress, "dense stereo")
+    t = time.perf_counter()
+    dense_wanted = {**wanted["dense"], "upstream": {"sfm": record_digest(sfm.summary)}}
+    if "sfm" in reused and _reusable(work_dir / "dense.json", dense_wanted, overwrite, stale):
+        dense = load_dense(work_dir)
+        reused.append("dense")
+    else:
+        dense = run_dense(capture, sfm.T_world_from_cam, sfm.registered, sfm.points_xyz,
+                          dense_cfg, progress=progress)
+        dense.summary["provenance"] = dense_wanted
+        save_dense(work_dir, dense)
+    seconds["dense_s"] = round(time.perf_counter() - t, 2)
+
+    say(progress, "masking")
+    t = time.perf_counter()
+    mask_wanted = {**wanted["masking"], "upstream": {"sfm": record_digest(sfm.summary),
+                                                     "dense": record_digest(dense.summary)}}
+    if "dense" in reused and _reusable(work_dir / "masking.json", mask_wanted, overwrite, stale):
+        masked = load_masking(work_dir)
+        reused.append("masking")
+    else:
+        masked = mask_cloud(dense.cloud, capture, sfm.T_world_from_cam, sfm.registered, mask_cfg)
+        masked.report["provenance"] = mask_wanted
+        save_masking(work_dir, masked)
+    seconds["masking_s"] = round(time.perf_counter() - t, 2)
+    return StageResults(sfm, dense, masked, identity, tuple(reused), seconds)
+
+
+def run_sfm_stage(capture: Capture, work_dir: Path, cfg: SfmConfig | None = None,
+                  overwrite: bool = False, stale: Stale = "refuse") -> tuple[SfmResult, bool]:
+    """(SfM result, whether it was computed now) for ``work_dir/sfm``, reused when finished
+    from exactly this capture, config and code."""
+    cfg = cfg or SfmConfig()
+    wanted = stage_provenance(capture_identity(capture), cfg, {}, STAGES["sfm"].modules)
+    preflight(work_dir, {"sfm": wanted}, overwrite, stale)
+    if _reusable(Path(work_dir) / STAGES["sfm"].record, wanted, overwrite, stale):
+        log.info("reusing the finished SfM stage in %s", Path(work_dir) / "sfm")
+        return load_sfm(work_dir), False
+    return run_sfm(capture, work_dir, cfg, provenance=wanted), True

@@ -110,10 +110,17 @@ def read_ply(path: Path) -> PointCloud:
 
 def write_cloud_record(cloud: PointCloud, record: dict[str, Any], ply_path: Path,
                        json_path: Path) -> Path:
-    """A stage's output: the cloud as PLY and its record as JSON, each written atomically."""
+    """A stage's output: the cloud as PLY and its record as JSON, committed together. The old
+    record is removed first and the new one written last (atomically), listing the PLY's
+    digest under ``files``: an interrupted run never looks finished, and a PLY changed later
+    no longer matches its record. ``record`` gets the ``files`` entry."""
     from volec.io import write_json_atomic
+    from volec.provenance import file_digest
 
+    ply_path, json_path = Path(ply_path), Path(json_path)
+    json_path.unlink(missing_ok=True)
     path = write_ply(cloud, ply_path)
+    record["files"] = {ply_path.name: file_digest(ply_path)}
     write_json_atomic(json_path, record)
     return path
 

@@ -31,11 +31,16 @@ from typing import Any, Literal
 import numpy as np
 
 from volec.capture import PIXEL_CENTRE_OFFSET, Capture
-from volec.errors import VolecError
+from volec.errors import ConfigError, VolecError
 from volec.geometry import invert_rigid, make_transform, rotation_angle_deg
 from volec.io import atomic_folder, write_json_atomic
+from volec.provenance import file_digest
 
 log = logging.getLogger(__name__)
+
+
+#: The files of a finished SfM stage (besides ``model/``) that ``summary.json`` lists.
+SFM_FILES = ("T_world_from_cam.npy", "registered.npy", "points.ply")
 
 
 class SfmError(VolecError):
@@ -180,7 +185,7 @@ def select_pairs(capture: Capture, cfg: SfmConfig) -> list[tuple[int, int]]:
             for j in partners[: cfg.pair_max_per_image]:
                 pairs.add((min(i, j), max(i, j)))
     elif cfg.pairing != "sequential":
-        raise ValueError(f"unknown pairing '{cfg.pairing}'")
+        raise ConfigError(f"unknown pairing '{cfg.pairing}'")
     return sorted(pairs)
 
 
@@ -379,9 +384,12 @@ def _replace_with_opencv_sift(db: Path, image_root: Path, cfg: SfmConfig) -> Non
             )
 
 
-def run_sfm(capture: Capture, work_dir: Path, cfg: SfmConfig | None = None) -> SfmResult:
+def run_sfm(capture: Capture, work_dir: Path, cfg: SfmConfig | None = None,
+            provenance: dict[str, Any] | None = None) -> SfmResult:
     """Run SfM on ``capture`` in ``work_dir/sfm`` (replaced on success) and align it to the
-    AR poses. Raises :class:`SfmError` with advice when the result cannot be trusted."""
+    AR poses. Raises :class:`SfmError` with advice when the result cannot be trusted.
+    ``provenance`` (:mod:`volec.provenance`) goes into ``summary.json``, which is written last
+    and lists the digests of the stage's other files."""
     cfg = cfg or SfmConfig()
     n = len(capture)
     if n < cfg.min_frames:
@@ -396,12 +404,13 @@ def run_sfm(capture: Capture, work_dir: Path, cfg: SfmConfig | None = None) -> S
         pycolmap.logging.minloglevel = 1
     try:
         with atomic_folder(Path(work_dir) / "sfm", overwrite=True) as sfm_dir:
-            return _run_sfm_in(capture, sfm_dir, cfg)
+            return _run_sfm_in(capture, sfm_dir, cfg, provenance)
     finally:
         pycolmap.logging.minloglevel = saved_level
 
 
-def _run_sfm_in(capture: Capture, sfm_dir: Path, cfg: SfmConfig) -> SfmResult:
+def _run_sfm_in(capture: Capture, sfm_dir: Path, cfg: SfmConfig,
+                provenance: dict[str, Any] | None) -> SfmResult:
     import pycolmap
 
     n = len(capture)
@@ -496,9 +505,12 @@ def _run_sfm_in(capture: Capture, sfm_dir: Path, cfg: SfmConfig) -> SfmResult:
     rec.write(sfm_dir / "model")
     rec.export_PLY(sfm_dir / "points.ply")
     shutil.rmtree(sfm_dir / "colmap", ignore_errors=True)
-    write_json_atomic(sfm_dir / "summary.json", result.summary)
     np.save(sfm_dir / "T_world_from_cam.npy", result.T_world_from_cam)
     np.save(sfm_dir / "registered.npy", result.registered)
+    if provenance is not None:
+        result.summary["provenance"] = provenance
+    result.summary["files"] = {name: file_digest(sfm_dir / name) for name in SFM_FILES}
+    write_json_atomic(sfm_dir / "summary.json", result.summary)  # last: the stage is done
     log.info(
         "SfM: %d/%d frames registered, scale %.5f m/unit (%s), residual median %.2f mm",
         result.summary["registered"], n, result.scale, cfg.scale_method,

@@ -200,8 +200,14 @@ def distance_histogram(distances_mm: dict[str, np.ndarray], limit_mm: float = 5.
 
 
 def save_figure(fig: Figure, path: Path, dpi: int = 120) -> Path:
-    """Write ``fig`` as PNG to ``path`` atomically and return the path."""
+    """Write ``fig`` as PNG to ``path`` atomically and return the path. The PNG's metadata
+    names the volec version and source digest that made it."""
+    from volec.tables import made_by
+
+    origin = made_by()
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight",
+                metadata={"Software": f"volec {origin['volec_version']} (source "
+                                      f"{origin['source_digest']})"})
     write_bytes_atomic(Path(path), buf.getvalue())
     return Path(path)

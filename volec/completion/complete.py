@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -30,9 +31,10 @@ from volec.completion.preprocess import (
 from volec.errors import VolecError
 from volec.pointcloud import PointCloud
 
-#: The checkpoint shipped with volec (trained by ``make retrain``, preset ``cpu``).
-SHIPPED_CHECKPOINT = (Path(__file__).resolve().parents[2] / "data" / "completion"
-                      / "symmcompletion_cpu.pt")
+#: The checkpoint shipped with volec (trained by ``make retrain``, preset ``cpu``): package
+#: data, found through importlib.resources wherever volec is installed.
+SHIPPED_CHECKPOINT = Path(str(resources.files("volec.completion") / "weights"
+                              / "symmcompletion_cpu.pt"))
 
 #: Colour given to the points the network adds.
 PREDICTED_RGB = (150, 150, 150)

@@ -16,6 +16,7 @@ from collections.abc import Callable
 import numpy as np
 import trimesh
 
+from volec.errors import UnknownNameError
 from volec.synth.shapes import (
     Field,
     _ellipsoid,
@@ -200,7 +201,7 @@ def family_mesh(name: str, seed: int, resolution: int = 72) -> trimesh.Trimesh:
     """The shape ``FAMILY-SEED``: random proportions, orientation about z, noise and volume
     (30-400 mL, log-uniform), as a watertight mesh in metres resting on z = 0."""
     if name not in FAMILIES:
-        raise KeyError(f"unknown shape family '{name}'; known: {', '.join(FAMILIES)}")
+        raise UnknownNameError(f"unknown shape family '{name}'; known: {', '.join(FAMILIES)}")
     rng = np.random.default_rng(stable_seed(f"{name}-{seed}"))
     field, extent = FAMILIES[name](rng)
     bump, rough = rng.uniform(0.02, 0.06), rng.uniform(0.004, 0.015)
@@ -218,5 +219,5 @@ def training_shapes(per_family: int, first_seed: int = 0,
     names = families or list(FAMILIES)
     unknown = set(names) - set(FAMILIES)
     if unknown:
-        raise KeyError(f"unknown shape families: {', '.join(sorted(unknown))}")
+        raise UnknownNameError(f"unknown shape families: {', '.join(sorted(unknown))}")
     return [(f, s) for f in names for s in range(first_seed, first_seed + per_family)]

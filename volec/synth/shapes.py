@@ -22,6 +22,7 @@ import trimesh
 from scipy.spatial import cKDTree
 from skimage.measure import marching_cubes
 
+from volec.errors import UnknownNameError
 from volec.synth.noise import SolidNoise
 
 Field = Callable[[np.ndarray], np.ndarray]
@@ -390,5 +391,5 @@ def item_mesh(name: str, resolution: int = 112) -> trimesh.Trimesh:
     Deterministic: the item's noise seed comes from its name. A copy is returned.
     """
     if name not in ITEMS:
-        raise KeyError(f"unknown food item '{name}'; known items: {', '.join(ITEMS)}")
+        raise UnknownNameError(f"unknown food item '{name}'; known items: {', '.join(ITEMS)}")
     return _item_mesh_cached(name, resolution).copy()

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
+from volec.errors import ConfigError
 from volec.geometry import look_at_opencv, make_transform, rotvec_to_matrix
 
 
@@ -90,7 +91,7 @@ def handheld_orbit(
 ) -> np.ndarray:
     """Exact camera poses ``T_scene_from_cam`` (N, 4, 4) of a handheld orbit around ``centre``."""
     if cfg.n_frames < 2:
-        raise ValueError(f"n_frames must be at least 2, got {cfg.n_frames}")
+        raise ConfigError(f"n_frames must be at least 2, got {cfg.n_frames}")
     t = np.linspace(0.0, 1.0, cfg.n_frames)
     closed = abs(cfg.arc_deg) >= 360.0
     # A full orbit does not repeat its first view at the end.

@@ -1,0 +1,159 @@
+"""Trust: whether a volume can be used as it is, and if not, why.
+
+In: :class:`TrustFacts` (what the stages measured about one estimate) and a
+:class:`TrustConfig`. Out: the list of :class:`Reason` s the estimate is not to be trusted
+(empty: trusted). ``result.json`` carries ``trusted`` and these reasons; ``volec estimate
+--strict`` exits non-zero when there are any. Warnings are for people; ``trusted`` is for
+programs (``--strict``, batch tables).
+
+Every reason volec can give is in :data:`REASONS`, with what it means; the README's table of
+what volec refuses and what it flags is generated from it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+#: Code -> what the reason means, with the threshold from :class:`TrustConfig` (the README's
+#: table is made from :func:`reason_descriptions`).
+REASONS: dict[str, str] = {
+    "no_support_plane": "no plane under the food was found: the underside is closed by "
+                        "Poisson alone",
+    "narrow_orbit": "the cameras span less than {min_orbit_deg:g} degrees around the food: "
+                    "its unseen side is a guess",
+    "few_registered_frames": "SfM registered fewer than {min_registered_fraction:.0%} of the "
+                             "frames",
+    "large_carving": "the food masks carve more than {max_carved_fraction:.0%} of the "
+                     "reconstructed solid away: masks, poses and cloud disagree",
+    "pieces_dropped": "the mesh fell apart and pieces holding more than "
+                      "{max_dropped_volume_fraction:.0%} of its volume were dropped",
+    "completion_dominates": "the completion network's points decide more than "
+                            "{max_completion_share:.0%} of the volume",
+    "scale_disagreement": "the SfM scale estimates (drift model, short baselines, all "
+                          "cameras) disagree by more than {max_scale_disagreement_pct:g} %",
+    "implausible_volume": "the volume is outside {min_volume_ml:g} mL - {max_volume_ml:g} mL, "
+                          "not one food item: the scale or the masks are wrong",
+    "unusable_masks": "more than {max_unusable_mask_fraction:.0%} of the frames have an "
+                      "unusable food mask (empty, whole frame or inverted); they were left out",
+    "far_points": "more than {max_far_point_fraction:.0%} of the food cloud lay far from the "
+                  "rest and was dropped before meshing",
+}
+
+
+@dataclass(frozen=True)
+class TrustConfig:
+    """Thresholds beyond which an estimate is not trusted (see :data:`REASONS`)."""
+
+    min_registered_fraction: float = 0.8
+    """Fewer registered frames than this fraction of the capture."""
+    min_orbit_deg: float = 180.0
+    """Cameras spanning less azimuth than this around the food (a 100-degree arc
+    over-estimated the benchmark cake by a third)."""
+    max_carved_fraction: float = 0.25
+    """Silhouette carving removing more than this fraction of the Poisson solid."""
+    max_dropped_volume_fraction: float = 0.05
+    """Mesh pieces dropped holding more than this fraction of the kept mesh's volume."""
+    max_completion_share: float = 0.25
+    """Share of the mesh's volume nearer to the network's points than to observed ones."""
+    max_scale_disagreement_pct: float = 2.0
+    """Largest spread of the three SfM scale estimates, percent (1 % of scale is 3 % of
+    volume)."""
+    min_volume_ml: float = 2.0
+    """Smaller volumes are not a food item (or the scale is wrong)."""
+    max_volume_ml: float = 5000.0
+    """Larger volumes are not one food item (or the scale is wrong)."""
+    max_unusable_mask_fraction: float = 0.05
+    """Share of the frames whose mask was left out as unusable."""
+    max_far_point_fraction: float = 0.01
+    """Share of the food cloud dropped as far from the rest before meshing."""
+
+
+@dataclass(frozen=True)
+class Reason:
+    """Why an estimate is not trusted: a stable ``code`` (a key of :data:`REASONS`) for
+    programs and a ``message`` with this estimate's numbers for people."""
+
+    code: str
+    message: str
+
+    def record(self) -> dict[str, str]:
+        """JSON-able form."""
+        return {"code": self.code, "message": self.message}
+
+
+@dataclass(frozen=True)
+class TrustFacts:
+    """What the stages measured about one estimate."""
+
+    frames: int
+    registered: int
+    orbit_coverage_deg: float
+    support_found: bool
+    carved_fraction: float
+    dropped_volume_ml: float
+    volume_ml: float
+    completion_share: float | None
+    """None without completion."""
+    scale_estimates: tuple[float, ...]
+    """The SfM's metres-per-unit estimates."""
+    unusable_masks: int
+    far_point_fraction: float
+
+
+def reason_descriptions(cfg: TrustConfig | None = None) -> dict[str, str]:
+    """:data:`REASONS` with the thresholds of ``cfg`` filled in."""
+    values = asdict(cfg or TrustConfig())
+    return {code: text.format(**values) for code, text in REASONS.items()}
+
+
+def scale_disagreement_pct(estimates: tuple[float, ...]) -> float:
+    """Spread of positive scale estimates: (largest / smallest - 1) in percent."""
+    values = [s for s in estimates if s > 0]
+    return 100.0 * (max(values) / min(values) - 1.0) if len(values) > 1 else 0.0
+
+
+def assess(facts: TrustFacts, cfg: TrustConfig | None = None) -> list[Reason]:
+    """The reasons an estimate with ``facts`` is not to be trusted (empty: trusted)."""
+    cfg = cfg or TrustConfig()
+    out: list[Reason] = []
+
+    def flag(code: str, message: str) -> None:
+        out.append(Reason(code, message))
+
+    if not facts.support_found:
+        flag("no_support_plane", "no support plane was found under the food: the underside "
+             "is closed by Poisson alone and the volume is less certain")
+    if facts.orbit_coverage_deg < cfg.min_orbit_deg:
+        flag("narrow_orbit", f"the cameras span only {facts.orbit_coverage_deg:.0f} degrees "
+             f"around the food (less than {cfg.min_orbit_deg:.0f}): its unseen side is a guess")
+    if facts.registered < cfg.min_registered_fraction * facts.frames:
+        flag("few_registered_frames", f"only {facts.registered} of {facts.frames} frames "
+             "were registered by SfM")
+    if facts.carved_fraction > cfg.max_carved_fraction:
+        flag("large_carving", f"the food masks carve {100 * facts.carved_fraction:.0f} % of "
+             "the reconstructed solid away: masks, poses and cloud disagree")
+    if facts.dropped_volume_ml > cfg.max_dropped_volume_fraction * max(facts.volume_ml, 1e-9):
+        flag("pieces_dropped", f"mesh pieces holding {facts.dropped_volume_ml:.1f} mL were "
+             f"dropped beside the {facts.volume_ml:.1f} mL kept")
+    if facts.completion_share is not None and facts.completion_share > cfg.max_completion_share:
+        flag("completion_dominates", f"the completion network's points decide "
+             f"{100 * facts.completion_share:.0f} % of the volume: it is more prediction than "
+             "observation")
+    spread = scale_disagreement_pct(facts.scale_estimates)
+    if spread > cfg.max_scale_disagreement_pct:
+        flag("scale_disagreement", f"the SfM scale estimates disagree by {spread:.1f} % (a "
+             f"{3 * spread:.0f} % spread of volume): the AR poses or the images are suspect")
+    if not cfg.min_volume_ml <= facts.volume_ml <= cfg.max_volume_ml:
+        flag("implausible_volume", f"{facts.volume_ml:.4g} mL is not one food item "
+             f"({cfg.min_volume_ml:g} mL - {cfg.max_volume_ml:g} mL expected): check the "
+             "capture's scale and masks")
+    if facts.unusable_masks > cfg.max_unusable_mask_fraction * facts.frames:
+        flag("unusable_masks", f"{facts.unusable_masks} of {facts.frames} food masks were "
+             "unusable and left out")
+    if facts.far_point_fraction > cfg.max_far_point_fraction:
+        flag("far_points", f"{100 * facts.far_point_fraction:.1f} % of the food cloud lay far "
+             "from the rest and was dropped before meshing")
+    unknown = {r.code for r in out} - set(REASONS)
+    if unknown:  # a programming error: every code must be documented
+        raise RuntimeError(f"undocumented trust reasons: {unknown}")
+    return out
