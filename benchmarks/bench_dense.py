@@ -5,7 +5,7 @@ Usage: .venv/bin/python benchmarks/bench_dense.py [--items apple banana ...] [--
                                                   [--cli-item banana]
 
 1. The experiment table (SfM poses and exact poses) over the items' full-orbit captures, cached
-   under data/bench-sfm like notebook 02; written to figures/dense_benchmark.{csv,md}.
+   under data/bench-sfm (-quick) like notebook 02; written to figures/dense_benchmark.{csv,md}.
 2. ``volec dense`` as a user runs it, in a child process on a copy of one item's SfM stage:
    wall time and peak resident memory of dense + masking (SfM reused), from
    ``resource.getrusage(RUSAGE_CHILDREN)``.
@@ -27,8 +27,8 @@ import pandas as pd
 
 from volec.capture import read_transforms_json
 from volec.experiments import dense_experiment, dense_table, ensure_capture, scenarios
-from volec.paths import data_dir, figures_dir
-from volec.pipeline import ensure_sfm
+from volec.paths import experiment_dir, figures_dir
+from volec.pipeline import run_sfm_stage
 from volec.tables import write_table
 
 
@@ -52,7 +52,7 @@ def main() -> None:
     parser.add_argument("--cli-item", default="banana")
     args = parser.parse_args()
     logging.basicConfig(level=logging.WARNING)
-    root = data_dir() / "bench-sfm"
+    root = experiment_dir(args.quick)
     scenario = scenarios(args.quick)["quick" if args.quick else "full_orbit"]
     raw = pd.concat([dense_experiment(root, args.items, scenario, poses)
                      for poses in ("refined", "exact")], ignore_index=True)
@@ -61,7 +61,7 @@ def main() -> None:
     print(shown.to_string(index=False, float_format=lambda x: f"{x:.2f}"))
 
     out = ensure_capture(root, args.cli_item, scenario)
-    ensure_sfm(read_transforms_json(out / "capture"), out / "work")
+    run_sfm_stage(read_transforms_json(out / "capture"), out / "work", stale="recompute")
     wall, peak = cli_run(out)
     print(f"\nvolec dense on {args.cli_item} ({scenario.name}, SfM reused): "
           f"{wall:.1f} s wall, {peak:.0f} MiB peak RSS")

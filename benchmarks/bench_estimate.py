@@ -3,11 +3,12 @@ memory, and the volume against the truth.
 
 Usage: .venv/bin/python benchmarks/bench_estimate.py [--items apple banana ...] [--quick]
 
-Each item's benchmark capture (generated under data/bench-sfm like notebook 04, if missing) is
-estimated from scratch into a fresh temporary folder (nothing reused), one item at a time, by
-``volec estimate`` in a child process. The wall time is the child's; the per-stage times come
-from its ``result.json``; peak resident memory from ``resource.getrusage(RUSAGE_CHILDREN)``
-(the largest child so far). Written to figures/estimate_benchmark.{csv,md}.
+Each item's benchmark capture (generated under data/bench-sfm, or -quick, like notebook 04, if
+missing) is estimated from scratch into a fresh temporary folder (nothing reused), one item at
+a time, by ``volec estimate`` in a child process. The wall time is the child's; the per-stage
+times come from its ``result.json``; peak resident memory from
+``resource.getrusage(RUSAGE_CHILDREN)`` (the largest child so far).
+Written to figures/estimate_benchmark.{csv,md}.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from pathlib import Path
 import pandas as pd
 
 from volec.experiments import ensure_capture, scenarios
-from volec.paths import data_dir, figures_dir
+from volec.paths import experiment_dir, figures_dir
 from volec.synth import load_ground_truth_mesh
 from volec.tables import write_table
 
@@ -51,7 +52,7 @@ def main() -> None:
     parser.add_argument("--items", nargs="+", default=["apple", "banana", "chocolate_cake"])
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args()
-    root = data_dir() / "bench-sfm"
+    root = experiment_dir(args.quick)
     scenario = scenarios(args.quick)["quick" if args.quick else "full_orbit"]
     rows = []
     for item in args.items:

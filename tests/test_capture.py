@@ -246,3 +246,28 @@ def test_a_mask_of_the_wrong_size_is_a_clear_error(tmp_path):
                   np.eye(4), mask_path=tmp_path / "m.png")
     with pytest.raises(CaptureError, match="must match"):
         read_mask(frame)
+
+
+def test_images_are_decoded_in_full_and_size_limited(tmp_path, monkeypatch):
+    import volec.capture
+
+    path = tmp_path / "a.png"
+    _image(path, 40, 30)
+    digest = volec.capture.verify_image(path, 40, 30, "image", "here")
+    assert len(digest) == 16
+    monkeypatch.setattr(volec.capture, "MAX_IMAGE_PIXELS", 1000)
+    with pytest.raises(CaptureError, match="here: image .*a.png declares 40x30 pixels, more than"):
+        volec.capture.verify_image(path, 40, 30, "image", "here")
+
+
+def test_a_capture_says_whether_it_is_metric(tmp_path):
+    fr = _frame("a", np.eye(4).tolist())
+    root = _capture_dir(tmp_path / "plain", [fr])
+    assert read_transforms_json(root).metric is None
+    root = _capture_dir(tmp_path / "metric", [fr], metric=True)
+    capture = read_transforms_json(root)
+    assert capture.metric is True
+    write_transforms_json(capture, tmp_path / "copy.json")  # round trip keeps it
+    assert json.loads((tmp_path / "copy.json").read_text())["metric"] is True
+    root = _capture_dir(tmp_path / "ngp", [fr], aabb_scale=16)
+    assert read_transforms_json(root).metric is False

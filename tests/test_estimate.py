@@ -20,13 +20,22 @@ from volec.volume import volume_ml
 def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys):
     out = tmp_path / "estimate"
     shutil.copytree(small_capture / "work" / "sfm", out / "sfm")  # SfM is reused
-    capture = small_capture / "capture"
+    # the capture alone, away from its ground truth: the pipeline never reads it
+    capture = tmp_path / "capture-only"
+    shutil.copytree(small_capture / "capture", capture)
     before = snapshot(capture)
     assert main(["estimate", str(capture), "--out", str(out), "--quiet"]) == 0
     printed = capsys.readouterr().out
     assert snapshot(capture) == before  # the capture is only read
 
     result = json.loads((out / "result.json").read_text())
+    # 16 frames over 100 degrees: made, but not trusted, and --strict says so
+    assert result["trusted"] is False
+    assert "narrow_orbit" in [r["code"] for r in result["reasons"]]
+    assert "NOT TRUSTED" in printed and "not trusted (narrow_orbit)" in printed
+    assert result["scale"]["source"] == "file"
+    assert result["provenance"]["capture"]["digest"] == small_result[0].summary[
+        "provenance"]["capture"]["digest"]
     assert result["completion_used"] and "sfm" in result["stages_reused"]
     assert f"{result['volume_ml']:.1f} mL" in printed
     assert {"sfm_s", "dense_s", "masking_s", "completion_s", "meshing_s"} <= set(
@@ -55,11 +64,22 @@ def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys
     truth = load_ground_truth_mesh(small_capture).volume * 1e6
     assert 0.7 * truth < result["volume_ml"] < 1.5 * truth
 
-    # other settings into the same folder are refused, and nothing is touched
+    # a re-run with the same inputs finds the estimate finished and touches nothing; with
+    # --strict it says the estimate is not trusted
     stages = snapshot(out)
+    assert main(["estimate", str(capture), "--out", str(out), "--quiet", "--strict"]) == 3
+    assert f"{result['volume_ml']:.1f} mL" in capsys.readouterr().out
+    assert snapshot(out) == stages
+    # other settings into the same folder are refused, and nothing is touched
     assert main(["estimate", str(capture), "--out", str(out), "--no-completion",
                  "--quiet"]) == 2
-    assert "other settings" in capsys.readouterr().err
+    assert "other settings (use_completion differ)" in capsys.readouterr().err
+    assert snapshot(out) == stages
+    # so is the same folder for a capture whose image changed since
+    image = capture / "images" / "frame_00004.jpg"
+    image.write_bytes(image.read_bytes() + b"\0")
+    assert main(["estimate", str(capture), "--out", str(out), "--quiet"]) == 2
+    assert "the images of 1 frames differ (images/frame_00004.jpg)" in capsys.readouterr().err
     assert snapshot(out) == stages
 
 

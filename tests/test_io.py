@@ -44,3 +44,15 @@ def test_write_json_atomic_round_trips(tmp_path):
     data = {"volume_ml": 175.25, "items": [1, 2]}
     write_json_atomic(tmp_path / "x" / "r.json", data)
     assert json.loads((tmp_path / "x" / "r.json").read_text()) == data
+
+
+def test_a_folder_lock_refuses_a_second_holder_and_is_released(tmp_path):
+    from volec.errors import BusyError
+    from volec.io import folder_lock
+
+    with folder_lock(tmp_path / "out"):
+        with pytest.raises(BusyError, match=r"another volec run \(pid \d+\)"):
+            with folder_lock(tmp_path / "out"):
+                pass
+    with folder_lock(tmp_path / "out"):  # released when the first run ended
+        pass

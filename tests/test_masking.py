@@ -10,7 +10,7 @@ from PIL import Image
 
 from volec.capture import Capture, Frame, Intrinsics
 from volec.geometry import look_at_opencv
-from volec.masking import MaskingConfig, MaskingError, mask_cloud
+from volec.masking import MaskingConfig, MaskingError, check_masks, mask_cloud
 from volec.pointcloud import PointCloud
 
 INTR = Intrinsics(96, 72, 90.0, 90.0, 47.5, 35.5)
@@ -97,3 +97,60 @@ def test_a_capture_without_masks_is_a_clear_error(tmp_path):
     poses = np.stack([f.T_world_from_cam for f in cap.frames])
     with pytest.raises(MaskingError, match="no food mask"):
         mask_cloud(PointCloud(np.zeros((1, 3))), bare, poses, np.ones(len(cap), bool))
+
+
+def _edit_mask(frame: Frame, change) -> None:
+    mask = np.asarray(Image.open(frame.mask_path)) > 127
+    Image.fromarray((change(mask) * 255).astype(np.uint8)).save(frame.mask_path)
+
+
+def _sphere_and_table(n_inside: int = 300) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(1)
+    inside = rng.normal(size=(n_inside, 3))
+    inside *= (0.9 * RADIUS_M * rng.random(n_inside) ** (1 / 3)
+               / np.linalg.norm(inside, axis=1))[:, None]
+    angle = rng.uniform(0, 2 * np.pi, 200)
+    radius = rng.uniform(2.0 * RADIUS_M, 3.0 * RADIUS_M, 200)
+    table = np.c_[radius * np.cos(angle), radius * np.sin(angle), np.full(200, -RADIUS_M)]
+    return inside, table
+
+
+def test_unusable_masks_are_named_and_take_no_part(tmp_path):
+    cap = _sphere_capture(tmp_path / "cap", n_views=16)
+    _edit_mask(cap.frames[2], lambda m: np.zeros_like(m))
+    _edit_mask(cap.frames[5], lambda m: ~m)
+
+    def frame_with_a_hole(m: np.ndarray) -> np.ndarray:
+        out = np.ones_like(m)
+        out[10:-10, 12:-12] = False  # half the image, all of its border
+        return out
+
+    _edit_mask(cap.frames[7], frame_with_a_hole)
+    bad = check_masks(cap)
+    assert sorted(bad) == ["f2.png", "f5.png", "f7.png"]
+    assert "empty" in bad["f2.png"] and "whole frame" in bad["f5.png"]
+    assert "border" in bad["f7.png"]
+    inside, table = _sphere_and_table()
+    poses = np.stack([f.T_world_from_cam for f in cap.frames])
+    result = mask_cloud(PointCloud(np.vstack([inside, table])), cap, poses,
+                        np.ones(len(cap), bool), MaskingConfig())
+    # the empty mask would have removed the whole item, the inverted one the table's absence
+    np.testing.assert_array_equal(result.cloud.xyz, inside)
+    assert result.report["unusable_masks"] == bad and result.report["views"] == 13
+    _edit_mask(cap.frames[8], lambda m: np.zeros_like(m))
+    with pytest.raises(MaskingError, match=r"4 of 16 food masks are unusable \(.*mask_2\.png"):
+        check_masks(cap)
+
+
+def test_one_frame_missing_part_of_the_food_does_not_remove_it(tmp_path):
+    cap = _sphere_capture(tmp_path / "cap", n_views=10)
+    # a segmenter missed the right half of the item in one frame
+    _edit_mask(cap.frames[3], lambda m: m & (np.arange(m.shape[1]) < INTR.cx)[None, :])
+    inside, table = _sphere_and_table()
+    cloud = PointCloud(np.vstack([inside, table]))
+    poses = np.stack([f.T_world_from_cam for f in cap.frames])
+    use = np.ones(len(cap), bool)
+    tolerant = mask_cloud(cloud, cap, poses, use, MaskingConfig())
+    np.testing.assert_array_equal(tolerant.cloud.xyz, inside)  # all food, no table
+    strict = mask_cloud(cloud, cap, poses, use, MaskingConfig(max_outside_views=0))
+    assert 0 < len(strict.cloud) < 0.8 * len(inside)  # the paper's rule loses the half

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -96,6 +98,37 @@ def test_fit_support_plane_finds_the_table_under_a_sphere():
         fit_support_plane(scene, food, up=np.array([1.0, 0.0, 0.0]))
     with pytest.raises(MeshingError, match="not food"):
         fit_support_plane(food, food)
+
+
+def test_a_stray_point_far_away_is_dropped_and_does_not_stretch_the_grid():
+    r = 0.04
+    sphere = _sphere_cloud(r, 20000)
+    stray = PointCloud(np.vstack([sphere.xyz, [[5.0, 5.0, 5.0]]]), None,
+                       np.vstack([sphere.normals, [[1.0, 0.0, 0.0]]]))
+    result = mesh_cloud(stray, None, FAST)
+    assert result.report["far_points_dropped"] == 1
+    assert np.prod(result.report["grid_shape"]) < 2e5  # about the sphere, not 5 m across
+    assert volume_ml(result.mesh) == pytest.approx(4 / 3 * np.pi * r**3 * 1e6, rel=0.02)
+
+
+def test_a_cloud_too_large_for_one_item_is_a_clear_error():
+    # two clouds 1.5 m apart: neither is a stray, and no food item spans them (at 2 mm the
+    # grid would have 1.6e6 points; the limit here is 1e6)
+    a, b = _sphere_cloud(0.04, 5000, (0, 0, 0)), _sphere_cloud(0.04, 5000, (1.5, 0, 0))
+    both = PointCloud(np.vstack([a.xyz, b.xyz]), None, np.vstack([a.normals, b.normals]))
+    with pytest.raises(MeshingError, match=r"spans 15\d\d x .* mm.*not one food item"):
+        mesh_cloud(both, None, replace(FAST, max_grid_points=1_000_000))
+
+
+def test_the_volume_of_dropped_pieces_is_reported():
+    big, small = _sphere_cloud(0.04, 20000, (0, 0, 0)), _sphere_cloud(0.015, 5000, (0.07, 0, 0))
+    cloud = PointCloud(np.vstack([big.xyz, small.xyz]), None,
+                       np.vstack([big.normals, small.normals]))
+    result = mesh_cloud(cloud, None, FAST)
+    assert result.report["pieces_dropped"] == 1
+    assert result.report["dropped_volume_ml"] == pytest.approx(
+        4 / 3 * np.pi * 0.015**3 * 1e6, rel=0.1)
+    assert volume_ml(result.mesh) == pytest.approx(4 / 3 * np.pi * 0.04**3 * 1e6, rel=0.02)
 
 
 def test_too_few_points_are_refused():

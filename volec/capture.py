@@ -303,7 +303,10 @@ def verify_image(path: Path, width: int, height: int, what: str, where: str) -> 
                 im.load()
     except CaptureError:
         raise
-    except (OSError, SyntaxError, ValueError, Image.DecompressionBombError) as e:
+    except Image.DecompressionBombError as e:
+        raise CaptureError(f"{where}: {what} {path} declares more pixels than can be decoded "
+                           f"safely ({e}); use the phone's own frames") from e
+    except (OSError, SyntaxError, ValueError) as e:
         # PIL reports truncated files as OSError, some corrupt headers as SyntaxError
         raise CaptureError(f"{where}: {what} {path} is not a readable image ({e}); replace "
                            "it, or remove the frame from the capture") from e

@@ -83,12 +83,12 @@ def _open_capture(args: argparse.Namespace):  # -> (Capture, ScaleCheck)
 
 def _cmd_sfm(args: argparse.Namespace) -> int:
     from volec.io import folder_lock
-    from volec.pipeline import check_outside_capture, run_sfm_stage
+    from volec.pipeline import check_output_folder, run_sfm_stage
     from volec.sfm import PRESETS
 
     work = Path(args.out)
     capture, _ = _open_capture(args)
-    check_outside_capture(capture, work)
+    check_output_folder(capture, work)
     with folder_lock(work):
         result, computed = run_sfm_stage(capture, work, PRESETS[args.preset], args.overwrite)
     if not computed:
@@ -109,12 +109,12 @@ def _cmd_dense(args: argparse.Namespace) -> int:
     from volec.io import folder_lock
     from volec.masking import PRESETS as MASK_PRESETS
     from volec.masking import require_masks
-    from volec.pipeline import check_outside_capture, run_stages
+    from volec.pipeline import check_output_folder, run_stages
     from volec.sfm import PRESETS as SFM_PRESETS
 
     work = Path(args.out)
     capture, _ = _open_capture(args)
-    check_outside_capture(capture, work)
+    check_output_folder(capture, work)
     require_masks(capture)
     with folder_lock(work):
         stages = run_stages(capture, work, SFM_PRESETS[args.sfm_preset], DENSE_PRESETS[args.preset],

@@ -57,7 +57,7 @@ from volec.meshing import (
 )
 from volec.pipeline import (
     StageResults,
-    check_outside_capture,
+    check_output_folder,
     preflight,
     read_record,
     run_stages,
@@ -423,7 +423,7 @@ def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = N
     estimate made from exactly these inputs is returned as it is."""
     cfg = cfg or EstimateConfig()
     out_dir = Path(out_dir)
-    check_outside_capture(capture, out_dir)
+    check_output_folder(capture, out_dir)
     scale = scale or require_metric(capture, cfg.scale)
     require_masks(capture)
     check_masks(capture, cfg.masking.checks)

@@ -90,9 +90,12 @@ def read_record(path: Path) -> dict[str, Any] | None:
     return record
 
 
-def check_outside_capture(capture: Capture, out_dir: Path) -> None:
-    """Raise unless ``out_dir`` lies outside the capture's folder: volec never writes into a
-    capture."""
+def check_output_folder(capture: Capture, out_dir: Path) -> None:
+    """Raise unless ``out_dir`` is a folder (or does not exist yet) outside the capture's
+    folder: volec never writes into a capture."""
+    if Path(out_dir).exists() and not Path(out_dir).is_dir():
+        raise OutputExistsError(f"the output folder {out_dir} exists and is a file; choose "
+                                "another folder")
     root, out = Path(capture.root).resolve(), Path(out_dir).resolve()
     if out == root or root in out.parents:
         raise VolecError(f"the output folder {out_dir} is inside the capture {capture.root}; "

@@ -128,11 +128,13 @@ def require_metric(capture: Capture, cfg: ScaleConfig | None = None,
                          f"millilitres would be a guess; {HOW_TO_GIVE_SCALE}")
     distance = camera_distance(capture)
     if not cfg.min_camera_distance_m <= distance <= cfg.max_camera_distance_m:
+        guess = ("Are the poses in centimetres (--scale 0.01) or millimetres (--scale 0.001)?"
+                 if distance > cfg.max_camera_distance_m else "Are the poses in another unit?")
         raise ScaleError(
             f"{where}: the cameras are a median {distance:.3g} units from the point they look "
             f"at; as metres that is not a phone filming food (expected "
-            f"{cfg.min_camera_distance_m}-{cfg.max_camera_distance_m} m). Are the poses in "
-            f"centimetres or millimetres? {HOW_TO_GIVE_SCALE[0].upper()}{HOW_TO_GIVE_SCALE[1:]}"
+            f"{cfg.min_camera_distance_m}-{cfg.max_camera_distance_m} m). {guess} "
+            f"{HOW_TO_GIVE_SCALE[0].upper()}{HOW_TO_GIVE_SCALE[1:]}"
         )
     if user_scale:
         return ScaleCheck("user", distance, capture.metres_per_unit, None)
