@@ -281,9 +281,13 @@ write([
         "ray-cast signed distance cut at the support plane (the plate top, found by RANSAC in "
         "the scene cloud) and intersected with the visual hull of the food masks, then marching "
         "cubes, so every mesh is watertight before its volume is taken.\n\n"
-        "Results are cached per item (`work/volume_eval.json`): a re-run only redoes what "
-        "changed. Items not cached yet run two at a time (`workers`); the first full run of "
-        "this notebook took 37 minutes on 2 cores."
+        "Each estimate is what `volec estimate` computes (the same core, "
+        "`volec.estimate.estimate_from_stages`), with its trust flag and the reasons' codes; "
+        "the ground truth is read only to score it. "
+        "Results are cached per item (`work/volume_eval.json`), keyed by the config, the "
+        "checkpoint and the code: a re-run only redoes what changed. Items not cached yet "
+        "run two at a time (`workers`); the first full run of this notebook took 37 minutes "
+        "on 2 cores."
     ),
     parameters(
         "quick = False  # CI-sized run: one item, a 20-frame capture\n"
@@ -304,7 +308,7 @@ write([
         "raw = volume_experiment(root, items, scenario, workers=workers)\n"
         'write_table(raw, figures_dir() / "volume_raw", float_digits=3)\n'
         'raw[["item", "gt_ml", "no_completion_ml", "completion_ml", "no_completion_chamfer_mm",\n'
-        '     "completion_chamfer_mm"]]'
+        '     "completion_chamfer_mm", "completion_trusted", "completion_reasons"]]'
     ),
     md("## One item, stage by stage\n\nSeen from slightly below the plate's level: the "
        "completed cloud's grey points are the network's."),

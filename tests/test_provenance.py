@@ -54,6 +54,9 @@ def test_source_digest_covers_what_a_module_imports_and_nothing_else(fake_packag
     changed = _digest_after(fake_package, "sub/c.py", "K = 2\n", "volec.a")
     assert changed != before
     assert _digest_after(fake_package, "sub/c.py", "K = 1\n", "volec.a") == before
+    # prose is not code: a docstring or a comment changes nothing
+    prose = '"""Constants."""\n\nK = 1  # the constant\n'
+    assert _digest_after(fake_package, "sub/c.py", prose, "volec.a") == before
 
 
 def test_the_real_stages_depend_on_their_own_modules():

@@ -36,3 +36,8 @@ class UnknownNameError(VolecError, KeyError):
 
     def __str__(self) -> str:  # KeyError would print the message quoted
         return str(self.args[0]) if self.args else ""
+
+
+class DataError(VolecError, ValueError):
+    """Data handed to volec (a point cloud, an array) cannot be used as it is (a ValueError
+    too, for callers that catch those)."""

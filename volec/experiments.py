@@ -548,13 +548,15 @@ def volume_experiment(root: Path, items: list[str], scenario: Scenario,
 def volume_table(raw: pd.DataFrame) -> pd.DataFrame:
     """The paper's Table I: per item the true volume, the estimate without completion (the
     VolE-style baseline) and with it, their absolute percentage errors and accuracy
-    (100 - APE); then the means (MAPE and mean accuracy)."""
+    (100 - APE), and whether volec trusted the estimate with completion (the default); then
+    the means (MAPE, mean accuracy, and the share of estimates trusted)."""
     table = pd.DataFrame({"item": raw["label"], "gt_ml": raw["gt_ml"]})
     for tag, name in (("no_completion", "without"), ("completion", "with")):
         ape = 100 * (raw[f"{tag}_ml"] - raw["gt_ml"]).abs() / raw["gt_ml"]
         table[f"{name}_ml"] = raw[f"{tag}_ml"]
         table[f"{name}_ape_pct"] = ape
         table[f"{name}_accuracy_pct"] = 100 - ape
+    table["with_trusted"] = raw["completion_trusted"].astype(float)
     means = table.drop(columns="item").mean().to_frame().T
     means.insert(0, "item", "mean")
     return pd.concat([table, means], ignore_index=True)

@@ -446,7 +446,8 @@ def mesh_cloud(cloud: PointCloud, support: SupportPlane | None = None,
     report["pieces_dropped"] = max(0, len(pieces) - 1)
     if pieces:
         largest = max(pieces, key=lambda m: m.volume)
-        report["dropped_volume_ml"] = round(float(sum(m.volume for m in pieces)
+        # a dropped inward piece is a cavity that the kept mesh now fills: count its size too
+        report["dropped_volume_ml"] = round(float(sum(abs(m.volume) for m in pieces)
                                                   - largest.volume) * 1e6, 3)
         mesh = largest
     if cfg.smoothing_iterations:

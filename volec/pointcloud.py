@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from volec.errors import VolecError
+from volec.errors import DataError, VolecError
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,7 +38,7 @@ class PointCloud:
                 continue
             value = np.asarray(value, dtype=dtype).reshape(-1, 3)
             if len(value) != len(xyz):
-                raise ValueError(f"{name} has {len(value)} rows for {len(xyz)} points")
+                raise DataError(f"{name} has {len(value)} rows for {len(xyz)} points")
             object.__setattr__(self, name, value)
 
     def __len__(self) -> int:

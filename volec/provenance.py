@@ -141,25 +141,39 @@ def module_closure(name: str) -> tuple[str, ...]:
 
 @functools.cache
 def source_digest(*modules: str) -> str:
-    """Digest of the source files of ``modules`` and of every volec module they import: it
-    changes whenever code that can change their results changes."""
+    """Digest of the code of ``modules`` and of every volec module they import: it changes
+    whenever code that can change their results changes (not when only docstrings or comments
+    do)."""
     h = hashlib.sha256()
     closure = sorted({m for name in modules for m in module_closure(name)})
     if not closure:
         raise ValueError(f"no source found for {modules}")
     for module in closure:
-        path = _module_file(module)
-        h.update(module.encode() + b"\0")
-        h.update(Path(path).read_bytes() + b"\0")
+        h.update(module.encode() + b"\0" + _code_of(_module_file(module)) + b"\0")
     return h.hexdigest()[:DIGEST_CHARS]
 
 
+def _code_of(path: Path) -> bytes:
+    """What in a source file can change results: its syntax tree without docstrings (comments
+    are not in it), so editing prose does not invalidate cached results."""
+    tree = ast.parse(path.read_text())
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if (isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef)
+                and body and isinstance(body[0], ast.Expr)
+                and isinstance(body[0].value, ast.Constant)
+                and isinstance(body[0].value.value, str)):
+            node.body = body[1:] or [ast.Pass()]
+    return ast.dump(tree).encode()
+
+
 def module_digest(name: str) -> str:
-    """Digest of one module's source file alone (not of what it imports)."""
+    """Digest of one module's code alone (not of what it imports; docstrings and comments
+    left out, as in :func:`source_digest`)."""
     path = _module_file(name)
     if path is None:
         raise ValueError(f"no source found for {name}")
-    return bytes_digest(path.read_bytes())
+    return bytes_digest(_code_of(path))
 
 
 @functools.cache

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from volec.errors import DataError
+
 
 @dataclass(frozen=True, eq=False)
 class Normalization:
@@ -39,12 +41,12 @@ def fit_normalization(xyz: np.ndarray) -> Normalization:
     z completes a right-handed frame), so the same cloud always gets the same frame."""
     xyz = np.asarray(xyz, float)
     if len(xyz) < 4:
-        raise ValueError(f"a cloud of {len(xyz)} points cannot be normalised; need 4 or more")
+        raise DataError(f"a cloud of {len(xyz)} points cannot be normalised; need 4 or more")
     centre = xyz.mean(axis=0)
     centred = xyz - centre
     scale = float(np.linalg.norm(centred, axis=1).max())
     if scale <= 0:
-        raise ValueError("all points coincide; the cloud has no extent")
+        raise DataError("all points coincide; the cloud has no extent")
     _, vectors = np.linalg.eigh(centred.T @ centred)
     axes = vectors[:, ::-1].T.copy()  # rows, largest variance first
     for i in range(2):
@@ -58,7 +60,7 @@ def resample(xyz: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
     """Exactly ``n`` points: a uniform random subset, or every point plus random repeats."""
     xyz = np.asarray(xyz, float)
     if len(xyz) == 0:
-        raise ValueError("cannot resample an empty cloud")
+        raise DataError("cannot resample an empty cloud")
     if len(xyz) >= n:
         return xyz[rng.choice(len(xyz), n, replace=False)]
     extra = rng.choice(len(xyz), n - len(xyz), replace=True)
