@@ -14,7 +14,9 @@ from volec.metrics import (
     chamfer_distance,
     cloud_scores,
     distances_to_surface,
+    mesh_offset_scores,
     sample_surface,
+    signed_distances_to_surface,
     views_seeing,
 )
 
@@ -63,3 +65,29 @@ def test_cloud_scores_of_the_visible_surface():
     assert scores["completeness_unseen"] == pytest.approx(1 - 0.096**2 / 0.1**2, abs=0.015)
     # the bottom is one face of six; the cameras see the other five
     assert scores["visible_surface_fraction"] == pytest.approx(5 / 6, abs=0.03)
+
+
+def test_signed_distances_are_positive_outside_a_sphere_and_exact():
+    truth = trimesh.creation.icosphere(subdivisions=6, radius=0.04)
+    truth.apply_translation([0.3, -0.1, 0.7])  # away from the origin, as in a capture
+    rng = np.random.default_rng(0)
+    d = rng.normal(size=(500, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    offset = rng.uniform(-0.002, 0.002, 500)
+    points = truth.bounds.mean(axis=0) + d * (0.04 + offset)[:, None]
+    signed = signed_distances_to_surface(points, truth)
+    # the icosphere's facets lie up to 4 micrometres inside the sphere
+    np.testing.assert_allclose(signed, offset, atol=6e-6)
+
+
+def test_a_mesh_offset_gives_the_volume_it_implies():
+    truth = trimesh.creation.icosphere(subdivisions=6, radius=0.04)
+    grown = trimesh.creation.icosphere(subdivisions=5, radius=0.0405)
+    scores = mesh_offset_scores(grown, truth)
+    assert scores["mesh_signed_median_m"] == pytest.approx(0.0005, abs=1e-5)
+    assert scores["mesh_signed_p10_m"] < scores["mesh_signed_median_m"] < scores[
+        "mesh_signed_p90_m"]
+    exact_ml = (grown.volume - truth.volume) * 1e6
+    assert scores["mesh_offset_ml"] == pytest.approx(exact_ml, rel=0.03)
+    assert scores["mesh_offset_pct"] == pytest.approx(100 * exact_ml / (truth.volume * 1e6),
+                                                      rel=0.03)

@@ -31,7 +31,14 @@ from volec.dense import DenseConfig, run_dense, save_dense
 from volec.errors import ConfigError, UnknownNameError
 from volec.io import write_bytes_atomic, write_json_atomic
 from volec.masking import MaskingConfig, mask_cloud, save_masking
-from volec.metrics import chamfer_distance, cloud_scores, sample_surface
+from volec.metrics import (
+    chamfer_distance,
+    cloud_scores,
+    mesh_offset_scores,
+    sample_surface,
+    signed_distances_to_surface,
+    signed_summary,
+)
 from volec.pipeline import config_record, run_sfm_stage, run_stages
 from volec.provenance import code_identity, file_digest, module_digest
 from volec.sfm import SfmConfig, evaluate_sfm
@@ -242,6 +249,9 @@ def dense_experiment(
 DENSE_COLUMNS = {
     "accuracy_median_m": 1000.0,
     "accuracy_p95_m": 1000.0,
+    "cloud_signed_median_m": 1000.0,
+    "cloud_signed_p10_m": 1000.0,
+    "cloud_signed_p90_m": 1000.0,
     "completeness_visible": 100.0,
     "completeness_unseen": 100.0,
     "visible_surface_fraction": 100.0,
@@ -483,6 +493,7 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
         silhouettes_s = time.perf_counter() - start
         truth_mesh = load_ground_truth_mesh(out)  # scoring only, after the estimate's inputs
         truth_points = sample_surface(truth_mesh, 20000, seed=0)
+        masked_signed = signed_distances_to_surface(masked.cloud.xyz, truth_mesh)
         row: dict[str, Any] = {
             "item": item, "label": load_truth(out)["label"], "scenario": scenario.name,
             "frames": len(capture), "registered": int(sfm.registered.sum()),
@@ -491,6 +502,7 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
             "dense_s": float(sum(dense.summary["timings_s"].values())),
             "masking_s": masked.report.get("seconds", np.nan),
             "silhouettes_s": silhouettes_s,
+            **signed_summary(masked_signed, "masked"),
         }
         for tag, net in (("no_completion", None), ("completion", model)):
             variant = replace(cfg, use_completion=net is not None)
@@ -510,6 +522,7 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
                     f"{tag}_reasons": ",".join(r.code for r in est.reasons),
                     f"{tag}_warnings": len(est.warnings),
                     f"{tag}_completion_share": made.completion_share,
+                    **mesh_offset_scores(made.mesh.mesh, truth_mesh, prefix=f"{tag}_mesh"),
                     **{f"{tag}_{k}": v for k, v in made.seconds.items()}}
         return row
 
@@ -560,6 +573,40 @@ def volume_table(raw: pd.DataFrame) -> pd.DataFrame:
     means = table.drop(columns="item").mean().to_frame().T
     means.insert(0, "item", "mean")
     return pd.concat([table, means], ignore_index=True)
+
+
+def surface_offset_table(raw: pd.DataFrame, tag: str = "completion") -> pd.DataFrame:
+    """Per item, how far the masked cloud and the final mesh (of variant ``tag``) lie outside
+    (+) or inside (-) the true surface, in mm (median, 10th and 90th percentile of signed
+    distances), the volume the mesh's offset implies (mean signed distance times area, as a
+    percentage of the true volume) beside the volume error, then the means."""
+    table = pd.DataFrame({"item": raw["label"]})
+    for source, prefix in (("cloud", "masked"), ("mesh", f"{tag}_mesh")):
+        for stat in ("median", "p10", "p90"):
+            table[f"{source}_signed_{stat}_mm"] = 1000 * raw[f"{prefix}_signed_{stat}_m"]
+    table["mesh_offset_implies_pct"] = raw[f"{tag}_mesh_offset_pct"]
+    table["volume_error_pct"] = 100 * (raw[f"{tag}_ml"] / raw["gt_ml"] - 1)
+    means = table.drop(columns="item").mean().to_frame().T
+    means.insert(0, "item", "mean")
+    abs_means = table.drop(columns="item").abs().mean().to_frame().T
+    abs_means.insert(0, "item", "mean abs")
+    return pd.concat([table, means, abs_means], ignore_index=True)
+
+
+def signed_surfaces(root: Path, items: list[str], scenario: Scenario, tag: str = "completion"
+                    ) -> dict[str, tuple[Any, np.ndarray]]:
+    """Per item of :func:`volume_experiment`, its final mesh (variant ``tag``) and the signed
+    distance of each of its vertices to the true surface (metres), for
+    :func:`volec.viz.signed_distance_figure`."""
+    import trimesh
+
+    out = {}
+    for item in items:
+        folder = ensure_capture(root, item, scenario)
+        mesh = trimesh.load(folder / "work" / f"mesh_{tag}.ply")
+        truth = load_ground_truth_mesh(folder)
+        out[item] = (mesh, signed_distances_to_surface(np.asarray(mesh.vertices), truth))
+    return out
 
 
 def paired_tests(raw: pd.DataFrame) -> pd.DataFrame:

@@ -108,6 +108,61 @@ def render_geometry(
     return np.asarray(image)
 
 
+def render_scalar_mesh(mesh: trimesh.Trimesh, values: np.ndarray, eye: np.ndarray,
+                       target: np.ndarray, up: np.ndarray, limit: float, cmap: str = "RdBu_r",
+                       size_px: tuple[int, int] = (420, 360)) -> np.ndarray:
+    """An off-screen picture (H, W, 3 uint8) of ``mesh`` coloured by a per-vertex value, on a
+    diverging colour map from -``limit`` to ``limit``."""
+    os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    import pyvista as pv
+
+    plotter = pv.Plotter(off_screen=True, window_size=size_px)
+    plotter.set_background("white")
+    faces = np.c_[np.full(len(mesh.faces), 3), mesh.faces].ravel()
+    data = pv.PolyData(np.asarray(mesh.vertices), faces)
+    data["value"] = np.asarray(values, float)
+    plotter.add_mesh(data, scalars="value", cmap=cmap, clim=(-limit, limit),
+                     smooth_shading=True, show_scalar_bar=False)
+    plotter.camera.position = tuple(np.asarray(eye, float))
+    plotter.camera.focal_point = tuple(np.asarray(target, float))
+    plotter.camera.up = tuple(np.asarray(up, float))
+    plotter.camera.view_angle = 30.0
+    image = plotter.screenshot(return_img=True)
+    plotter.close()
+    return np.asarray(image)
+
+
+def signed_distance_figure(surfaces: dict[str, tuple[trimesh.Trimesh, np.ndarray]],
+                           up: np.ndarray, limit_mm: float = 1.0) -> Figure:
+    """Each named mesh coloured by its signed distance to the true surface (per vertex,
+    metres; red outside, blue inside), seen from above and from below the table's level,
+    with one colour bar in mm."""
+    from volec.geometry import horizontal_axes
+
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    side, _ = horizontal_axes(up)
+    fig, axes = plt.subplots(2, len(surfaces), figsize=(3.4 * len(surfaces), 6.2),
+                             squeeze=False)
+    for col, (name, (mesh, signed_m)) in enumerate(surfaces.items()):
+        lo, hi = mesh.bounds
+        target, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
+        for row, elevation in enumerate((40.0, -35.0)):
+            el = np.radians(elevation)
+            eye = target + 3.6 * radius * (np.cos(el) * side + np.sin(el) * up)
+            image = render_scalar_mesh(mesh, 1000 * np.asarray(signed_m), eye, target, up,
+                                       limit_mm)
+            axes[row, col].imshow(image)
+            axes[row, col].axis("off")
+            where = "above" if elevation > 0 else "below"
+            axes[row, col].set_title(f"{name}, from {where}\nmedian "
+                                     f"{1000 * np.median(signed_m):+.2f} mm", fontsize=9)
+    mappable = matplotlib.cm.ScalarMappable(
+        norm=matplotlib.colors.Normalize(-limit_mm, limit_mm), cmap="RdBu_r")
+    fig.colorbar(mappable, ax=axes, shrink=0.6, label="signed distance to the true surface, "
+                 "mm (+ outside)")
+    return fig
+
+
 def geometry_panels(
     panels: dict[str, PointCloud | trimesh.Trimesh],
     eye: np.ndarray,
