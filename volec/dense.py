@@ -548,23 +548,32 @@ def _object_targets(views: list[View], sparse_xyz: np.ndarray) -> np.ndarray:
     return np.asarray(targets)
 
 
-def run_dense(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarray,
-              sparse_xyz: np.ndarray, cfg: DenseConfig | None = None,
-              progress: bool = True) -> DenseResult:
-    """Depth maps of every registered frame, filtered and fused into the scene cloud.
+@dataclass(eq=False)
+class DensePlan:
+    """The views of a dense run and who is compared with whom."""
 
-    ``T_world_from_cam`` (N, 4, 4) and ``registered`` (N,) are per capture frame (the SfM
-    stage's refined poses); ``sparse_xyz`` (M, 3) are the SfM points, which bound the depths.
-    """
+    views: list[View]
+    """The registered frames at working resolution."""
+    references: list[int]
+    """Positions (in ``views``) of the reference views, which get a depth map."""
+    sources: dict[int, list[int]]
+    """Per reference, the stereo source views."""
+    checks: dict[int, list[int]]
+    """Per reference, the other references whose depth maps must confirm its depths."""
+    use_mask: bool
+    """Whether the work is limited to the food masks' surroundings."""
+
+
+def plan_dense(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarray,
+               sparse_xyz: np.ndarray, cfg: DenseConfig, progress: bool = False) -> DensePlan:
+    """Load the registered frames (``T_world_from_cam`` (N, 4, 4) per capture frame) and
+    choose the reference views, their sources and their consistency checks."""
     from tqdm.auto import tqdm
 
-    cfg = cfg or DenseConfig()
     if cfg.ncc_window_px % 2 == 0 or cfg.ncc_window_px < 3:
         raise ConfigError("ncc_window_px must be odd and at least 3")
     if len(T_world_from_cam) != len(capture) or len(registered) != len(capture):
         raise ValueError("one pose and one registered flag per capture frame are needed")
-    timings: dict[str, float] = {}
-    t = time.perf_counter()
     use_mask = cfg.roi == "mask" and capture.has_masks
     if cfg.roi == "mask" and not capture.has_masks:
         log.warning("the capture has no masks: dense stereo runs on the whole image (slower)")
@@ -573,9 +582,6 @@ def run_dense(capture: Capture, T_world_from_cam: np.ndarray, registered: np.nda
         raise DenseError(f"only {len(indices)} frames registered; dense stereo needs 3 or more")
     views = [prepare_view(int(i), capture.frames[i], T_world_from_cam[i], cfg, use_mask)
              for i in tqdm(indices, desc="dense: loading frames", disable=not progress)]
-    timings["load_s"] = time.perf_counter() - t
-
-    t = time.perf_counter()
     centres = np.stack([v.centre for v in views])
     targets = _object_targets(views, sparse_xyz)
     positions = np.arange(len(views))
@@ -586,48 +592,81 @@ def run_dense(capture: Capture, T_world_from_cam: np.ndarray, registered: np.nda
     # (with every frame a reference, they are the stereo sources themselves).
     checks = {int(r): select_sources(centres, targets, r, references, cfg.n_sources,
                                      cfg.source_angle_deg) for r in references}
+    return DensePlan(views, [int(r) for r in references], sources, checks, use_mask)
+
+
+def depth_maps(plan: DensePlan, sparse_xyz: np.ndarray, cfg: DenseConfig,
+               progress: bool = False) -> tuple[dict[int, DepthMap], list]:
+    """The plane-sweep depth map of every reference view of ``plan``, and each one's depth
+    range (None where too few sparse points fall in its view: then its map is empty)."""
+    from tqdm.auto import tqdm
+
     maps: dict[int, DepthMap] = {}
     ranges = []
-    for r in tqdm(references, desc="dense: depth maps", disable=not progress):
-        r = int(r)
-        near_far = depth_range(views[r], sparse_xyz, cfg.depth_range_margin)
+    for r in tqdm(plan.references, desc="dense: depth maps", disable=not progress):
+        view = plan.views[r]
+        near_far = depth_range(view, sparse_xyz, cfg.depth_range_margin)
         ranges.append(near_far)
         if near_far is None:
-            log.warning("frame %s: too few sparse points in view; no depth map",
-                        capture.frames[views[r].index].name)
-            maps[r] = DepthMap(np.zeros_like(views[r].gray), np.full_like(views[r].gray, -1), [])
+            log.warning("frame %d: too few sparse points in view; no depth map", view.index)
+            maps[r] = DepthMap(np.zeros_like(view.gray), np.full_like(view.gray, -1), [])
             continue
-        maps[r] = estimate_depth(views, r, sources[r], near_far, cfg)
-    timings["depth_s"] = time.perf_counter() - t
+        maps[r] = estimate_depth(plan.views, r, plan.sources[r], near_far, cfg)
+    return maps, ranges
 
-    t = time.perf_counter()
+
+def fuse_depth_maps(plan: DensePlan, maps: dict[int, DepthMap], cfg: DenseConfig
+                    ) -> tuple[PointCloud, int, int]:
+    """The consistent depths of all reference views as one cloud with colours and normals,
+    merged on the fusion voxel grid; with the number of depths estimated and of those that
+    neighbouring depth maps confirmed."""
     xyz, rgb, normals = [], [], []
     n_estimated = 0
     for r in maps:
         n_estimated += int((maps[r].depth_m > 0).sum())
-        pix, X, _ = consistent_points(views, maps, r, checks[r], cfg)
+        pix, X, _ = consistent_points(plan.views, maps, r, plan.checks[r], cfg)
         if not len(X):
             continue
+        view = plan.views[r]
         xyz.append(X)
-        rgb.append(views[r].rgb[pix[:, 0], pix[:, 1]])
-        normals.append(depth_normals(views[r], maps[r].depth_m)[pix[:, 0], pix[:, 1]])
+        rgb.append(view.rgb[pix[:, 0], pix[:, 1]])
+        normals.append(depth_normals(view, maps[r].depth_m)[pix[:, 0], pix[:, 1]])
     if not xyz:
         raise DenseError(
             "no depth survived the multi-view consistency check: the frames may be blurred, "
             "the food textureless, or the poses wrong (check the SfM summary)"
         )
     fused = PointCloud(np.concatenate(xyz), np.concatenate(rgb), np.concatenate(normals))
-    has_normal = np.linalg.norm(fused.normals, axis=1) > 0.5
-    fused = fused.subset(has_normal)
-    n_consistent = len(fused)
-    cloud = voxel_merge(fused, cfg.fusion_voxel_m)
+    fused = fused.subset(np.linalg.norm(fused.normals, axis=1) > 0.5)
+    return voxel_merge(fused, cfg.fusion_voxel_m), n_estimated, len(fused)
+
+
+def run_dense(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarray,
+              sparse_xyz: np.ndarray, cfg: DenseConfig | None = None,
+              progress: bool = True) -> DenseResult:
+    """Depth maps of every registered frame, filtered and fused into the scene cloud.
+
+    ``T_world_from_cam`` (N, 4, 4) and ``registered`` (N,) are per capture frame (the SfM
+    stage's refined poses); ``sparse_xyz`` (M, 3) are the SfM points, which bound the depths.
+    """
+    cfg = cfg or DenseConfig()
+    timings: dict[str, float] = {}
+    t = time.perf_counter()
+    plan = plan_dense(capture, T_world_from_cam, registered, sparse_xyz, cfg, progress)
+    timings["load_s"] = time.perf_counter() - t
+    t = time.perf_counter()
+    maps, ranges = depth_maps(plan, sparse_xyz, cfg, progress)
+    timings["depth_s"] = time.perf_counter() - t
+    t = time.perf_counter()
+    cloud, n_estimated, n_consistent = fuse_depth_maps(plan, maps, cfg)
     timings["fuse_s"] = time.perf_counter() - t
+    views = plan.views
     summary = {
         "frames": len(capture),
         "reference_views": len(maps),
         "depth_maps": int(sum(1 for m in maps.values() if m.sources)),
         "working_size_px": list(views[0].gray.shape[::-1]),
-        "roi": "mask" if use_mask else "full",
+        "roi": "mask" if plan.use_mask else "full",
         "roi_pixels_median": int(np.median([v.roi.sum() for v in views])),
         "depths_estimated": n_estimated,
         "depths_consistent": n_consistent,

@@ -558,6 +558,143 @@ def volume_experiment(root: Path, items: list[str], scenario: Scenario,
     return pd.DataFrame([rows[item] for item in items])
 
 
+ATTRIBUTION_CACHE = "attribution_eval.json"
+
+#: The attribution experiment's variants, from the pipeline to exact depth.
+ATTRIBUTION_VARIANTS = {
+    "pipeline": "SfM poses, stereo at 512 px (what volec estimate does)",
+    "exact_poses": "exact poses, stereo at 512 px",
+    "exact_poses_full_res": "exact poses, stereo at the full 640 px",
+    "exact_depth": "exact poses, the renderer's depth maps at 512 px, the same fusion",
+}
+
+
+def _with_exact_poses(stages: Any, exact: Any) -> Any:
+    """The stage results with the SfM poses replaced by the exact ones, every frame
+    registered (for the attribution experiment only)."""
+    from dataclasses import replace
+
+    sfm = replace(stages.sfm, T_world_from_cam=np.stack([f.T_world_from_cam for f in exact.frames]),
+                  registered=np.ones(len(exact), bool))
+    return replace(stages, sfm=sfm)
+
+
+def _exact_depth_cloud(capture: Any, sfm: Any, item: str, scenario: Scenario,
+                       cfg: DenseConfig) -> Any:
+    """The scene cloud that the dense stage's fusion makes from the renderer's exact depth
+    maps (at the working resolution, inside the same regions of interest)."""
+    from volec.dense import DenseResult, DepthMap, fuse_depth_maps, plan_dense
+    from volec.synth.generate import ExactDepth
+
+    plan = plan_dense(capture, sfm.T_world_from_cam, sfm.registered, sfm.points_xyz, cfg)
+    exact_depth = ExactDepth(item, scenario.synth)
+    maps = {}
+    for r in plan.references:
+        view = plan.views[r]
+        h, w = view.gray.shape
+        depth = exact_depth(view.K, w, h, np.linalg.inv(view.T_cam_from_world))
+        depth = np.where(np.isfinite(depth) & view.roi, depth, 0.0).astype(np.float32)
+        maps[r] = DepthMap(depth, np.where(depth > 0, 1.0, -1.0).astype(np.float32),
+                           plan.sources[r])
+    cloud, estimated, consistent = fuse_depth_maps(plan, maps, cfg)
+    return DenseResult(cloud, {"depths_estimated": estimated, "depths_consistent": consistent})
+
+
+def attribution_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
+                    key: dict[str, Any]) -> dict[str, Any]:
+    """One item of :func:`attribution_experiment`, computed and cached under ``key``."""
+    from dataclasses import replace
+
+    from volec.estimate import estimate_from_stages, food_silhouettes, load_completion_model
+
+    out = ensure_capture(root, item, scenario)
+
+    def run() -> dict[str, Any]:
+        capture = read_transforms_json(out / "capture")
+        exact = read_transforms_json(out / "ground_truth" / "transforms_exact.json",
+                                     check_image_sizes=False)
+        truth = load_ground_truth_mesh(out)
+        model = load_completion_model(cfg)
+        stages = run_stages(capture, out / "work", cfg.sfm, cfg.dense, cfg.masking,
+                            stale="recompute", progress=False)
+        exact_stages = _with_exact_poses(stages, exact)
+        sfm = exact_stages.sfm
+        full_res = replace(cfg.dense, max_image_size_px=max(capture.frames[0].intrinsics.width,
+                                                            capture.frames[0].intrinsics.height))
+        scenes = {
+            "exact_poses": lambda: run_dense(capture, sfm.T_world_from_cam, sfm.registered,
+                                             sfm.points_xyz, cfg.dense, progress=False),
+            "exact_poses_full_res": lambda: run_dense(capture, sfm.T_world_from_cam,
+                                                      sfm.registered, sfm.points_xyz, full_res,
+                                                      progress=False),
+            "exact_depth": lambda: _exact_depth_cloud(capture, sfm, item, scenario, cfg.dense),
+        }
+        row: dict[str, Any] = {"item": item, "gt_ml": float(truth.volume * 1e6)}
+        for variant in ATTRIBUTION_VARIANTS:
+            if variant == "pipeline":
+                these = stages
+            else:
+                dense = scenes[variant]()
+                masked = mask_cloud(dense.cloud, capture, sfm.T_world_from_cam, sfm.registered,
+                                    cfg.masking)
+                these = replace(exact_stages, dense=dense, masked=masked)
+            est = estimate_from_stages(capture, these, model, cfg,
+                                       food_silhouettes(capture, these, cfg))
+            signed = signed_distances_to_surface(these.masked.cloud.xyz, truth)
+            row |= {f"{variant}_ml": est.food.volume_ml,
+                    f"{variant}_error_pct": 100 * (est.food.volume_ml / row["gt_ml"] - 1),
+                    **signed_summary(signed, f"{variant}_cloud"),
+                    **mesh_offset_scores(est.food.mesh.mesh, truth, prefix=f"{variant}_mesh")}
+        return row
+
+    return cached_row(out / "work" / ATTRIBUTION_CACHE, key, run)
+
+
+def attribution_experiment(root: Path, items: list[str], scenario: Scenario,
+                           cfg: EstimateConfig | None = None, workers: int = 1,
+                           progress: bool = True) -> pd.DataFrame:
+    """Where the surface offset comes from: per item, the masked cloud's and the mesh's signed
+    distances to the true surface and the volume error, for each of
+    :data:`ATTRIBUTION_VARIANTS` (SfM poses; exact poses; exact poses at full resolution;
+    exact depth through the same fusion, masking and meshing). The stages of the pipeline
+    variant are reused from the volume experiment. Cached per item in
+    ``attribution_eval.json``, keyed like :func:`volume_experiment`."""
+    from volec.estimate import EstimateConfig, checkpoint_path
+
+    cfg = cfg or EstimateConfig()
+    key = row_key(config_record(cfg), "volec.estimate", "volec.metrics", "volec.synth.generate",
+                  checkpoint=file_digest(checkpoint_path(cfg)))
+    rows = {item: _cached(root / f"{item}-{scenario.name}" / "work" / ATTRIBUTION_CACHE, key)
+            for item in items}
+    todo = [item for item in items if rows[item] is None]
+    computed = map_items(attribution_row, [(root, item, scenario, cfg, key) for item in todo],
+                         todo, workers, progress)
+    rows.update(zip(todo, computed, strict=True))
+    return pd.DataFrame([rows[item] for item in items])
+
+
+def attribution_table(raw: pd.DataFrame) -> pd.DataFrame:
+    """One row per (item, variant): the cloud's and the mesh's median signed distance (mm),
+    the mesh's p10-p90 band, the volume its offset implies and the volume error (percent);
+    then the mean per variant."""
+    rows = []
+    for _, r in raw.iterrows():
+        for variant, what in ATTRIBUTION_VARIANTS.items():
+            rows.append({
+                "item": r["item"], "variant": variant, "what": what,
+                "cloud_signed_median_mm": 1000 * r[f"{variant}_cloud_signed_median_m"],
+                "mesh_signed_median_mm": 1000 * r[f"{variant}_mesh_signed_median_m"],
+                "mesh_signed_p10_mm": 1000 * r[f"{variant}_mesh_signed_p10_m"],
+                "mesh_signed_p90_mm": 1000 * r[f"{variant}_mesh_signed_p90_m"],
+                "mesh_offset_implies_pct": r[f"{variant}_mesh_offset_pct"],
+                "volume_error_pct": r[f"{variant}_error_pct"]})
+    table = pd.DataFrame(rows)
+    numeric = table.columns.drop(["item", "variant", "what"])
+    means = table.groupby(["variant", "what"], sort=False)[numeric].mean().reset_index()
+    means.insert(0, "item", "mean")
+    return pd.concat([table, means], ignore_index=True)
+
+
 def volume_table(raw: pd.DataFrame) -> pd.DataFrame:
     """The paper's Table I: per item the true volume, the estimate without completion (the
     VolE-style baseline) and with it, their absolute percentage errors and accuracy

@@ -219,6 +219,24 @@ def plan_capture(item: str, cfg: SynthConfig) -> SynthScene:
     return SynthScene(item, scene, T_world_from_scene, exact, reported)
 
 
+class ExactDepth:
+    """Exact depth maps of a synthetic capture's scene, for evaluation only: the renderer's
+    depth through any camera given in the capture's world frame."""
+
+    def __init__(self, item: str, cfg: SynthConfig) -> None:
+        from volec.geometry import invert_rigid
+
+        plan = plan_capture(item, cfg)
+        self._renderer = Renderer(plan.scene)
+        self._scene_from_world = invert_rigid(plan.T_world_from_scene)
+
+    def __call__(self, K: np.ndarray, width: int, height: int, T_world_from_cam: np.ndarray
+                 ) -> np.ndarray:
+        """(H, W) z-depth in metres (inf where the ray meets nothing) through ``K``."""
+        T_scene_from_cam = self._scene_from_world @ np.asarray(T_world_from_cam, float)
+        return self._renderer.depth(K, width, height, T_scene_from_cam)[0]
+
+
 def _pose_errors(reported: np.ndarray, exact: np.ndarray) -> dict[str, float]:
     pos = np.linalg.norm(reported[:, :3, 3] - exact[:, :3, 3], axis=1)
     rot = np.array(

@@ -88,6 +88,28 @@ class Renderer:
             depth_m=depth.reshape(height, width),
         )
 
+    def depth(self, K: np.ndarray, width: int, height: int, T_scene_from_cam: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """The exact z-depth (H, W) metres along each pixel centre's ray (inf where it hits
+        nothing) and the object label (H, W) it hits, without shading: what a perfect depth
+        sensor would see."""
+        u, v = np.meshgrid(np.arange(width, dtype=float), np.arange(height, dtype=float))
+        dirs_cam = np.stack(
+            [(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], axis=-1
+        ).reshape(-1, 3)
+        R, origin = T_scene_from_cam[:3, :3], T_scene_from_cam[:3, 3]
+        dirs = np.einsum("ij,kj->ik", dirs_cam, R)
+        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+        tri = self._rays.intersects_first(np.broadcast_to(origin, dirs.shape), dirs)
+        hit = tri >= 0
+        depth = np.full(len(dirs), np.inf)
+        label = np.full(len(dirs), -1, dtype=np.int8)
+        if hit.any():
+            points, _ = self._surface(tri[hit], origin, dirs[hit])
+            depth[hit] = np.einsum("ij,j->i", points - origin, R[:, 2])
+            label[hit] = self.scene.face_label[tri[hit]]
+        return depth.reshape(height, width), label.reshape(height, width)
+
     def _surface(
         self, tri: np.ndarray, origin: np.ndarray, dirs: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
