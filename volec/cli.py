@@ -221,7 +221,9 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument("--list", action="store_true", help="list the items and their volumes")
     synth.add_argument("--out", type=Path, help="output folder (for 'all': one folder per item)")
     synth.add_argument("--preset", default="default",
-                       choices=["default", "half_orbit", "drift_1cm", "quick"])
+                       choices=["default", "sharp", "half_orbit", "drift_1cm", "quick"],
+                       help="default: a phone's look; sharp: the first benchmark's look "
+                       "(one ray per pixel, hard shadows, no blur)")
     synth.add_argument("--frames", type=int, help="number of frames (default 100)")
     synth.add_argument("--arc", type=float, help="orbit arc in degrees (default 360)")
     synth.add_argument("--drift-mm", type=float, help="largest AR position drift, mm (default 5)")

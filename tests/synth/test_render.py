@@ -39,3 +39,58 @@ def test_labels_and_image_content(scene):
     assert (view.label == PLATE).sum() > 1000
     assert view.rgb.min() >= 0 and view.rgb.max() <= 1
     assert np.isinf(view.depth_m[view.label < 0]).all()
+
+
+def _sphere_scene(radius: float = 0.03):
+    import trimesh
+
+    food = trimesh.creation.icosphere(subdivisions=5, radius=radius)
+    food.apply_translation([0.0, 0.0, radius])
+    return build_scene(food, "apple", seed=1)
+
+
+def test_the_phone_look_masks_pixels_by_the_share_the_food_covers():
+    from volec.synth.render import LOOKS
+
+    radius = 0.03
+    scene = _sphere_scene(radius)
+    K = np.array([[250.0, 0, 79.5], [0, 250.0, 79.5], [0, 0, 1]])
+    eye = np.array([0.0, -0.02, 0.3])
+    T = look_at_opencv(eye, np.array([0.0, 0.0, radius]), np.array([0.0, 0.0, 1.0]))
+    view = Renderer(scene).render(K, 160, 160, T, LOOKS["phone"])
+    cov = view.food_coverage
+    partial = (cov > 0) & (cov < 1)
+    assert partial.sum() > 100  # the rim is integrated over each pixel's area
+    # analytic: a pixel is mostly food when its centre ray passes within the sphere
+    u, v = np.meshgrid(np.arange(160.0), np.arange(160.0))
+    rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], -1)
+    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
+    centre = T[:3, :3].T @ (np.array([0.0, 0.0, radius]) - eye)
+    along = rays @ centre
+    inside = np.linalg.norm(rays * along[..., None] - centre, axis=-1) <= radius
+    assert (view.food_mask != inside).sum() <= 0.02 * partial.sum() + 4
+    # away from the rim the share is all or nothing
+    from scipy import ndimage
+
+    rim = ndimage.binary_dilation(inside ^ ndimage.binary_erosion(inside), iterations=2)
+    assert set(np.unique(cov[~rim])) <= {0.0, 1.0}
+
+
+def test_the_phone_look_has_soft_shadows_and_blur():
+    from volec.synth.render import LOOKS
+
+    scene = _sphere_scene()
+    K = np.array([[200.0, 0, 99.5], [0, 200.0, 99.5], [0, 0, 1]])
+    T = look_at_opencv(np.array([0.05, -0.25, 0.35]), np.zeros(3), np.array([0.0, 0.0, 1.0]))
+    renderer = Renderer(scene)
+    sharp = renderer.render(K, 200, 200, T, LOOKS["sharp"])
+    phone = renderer.render(K, 200, 200, T, LOOKS["phone"])
+    plate = (sharp.label == PLATE) & (phone.label == PLATE)
+    # on the plate, the sharp look's shadow has two levels; the phone's shades in between
+    levels = np.unique(np.round(sharp.rgb[plate][:, 0], 2))
+    between = (phone.rgb[plate][:, 0] > levels.min() + 0.05) & (
+        phone.rgb[plate][:, 0] < levels.max() - 0.05)
+    assert between.sum() > 5 * (np.diff(np.sort(sharp.rgb[plate][:, 0])) > 0.05).sum()
+    # the optical blur lowers the pixel-to-pixel differences
+    assert np.abs(np.diff(phone.rgb[..., 1], axis=1)).mean() < 0.8 * np.abs(
+        np.diff(sharp.rgb[..., 1], axis=1)).mean()

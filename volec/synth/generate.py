@@ -42,7 +42,7 @@ from volec.io import (
     write_bytes_atomic,
     write_json_atomic,
 )
-from volec.synth.render import Renderer, to_srgb8
+from volec.synth.render import LOOKS, LookConfig, Renderer, to_srgb8
 from volec.synth.scene import Scene, build_scene
 from volec.synth.shapes import ITEMS, item_mesh, stable_seed
 from volec.synth.trajectory import (
@@ -74,11 +74,20 @@ class SynthConfig:
     """Focal length, pixels (about 63 degrees across the long side, like a phone)."""
     principal_offset_px: tuple[float, float] = (1.3, -0.9)
     """Principal point offset from the image centre, pixels."""
-    image_noise_std: float = 1.5
-    """Sensor noise standard deviation, in 8-bit levels."""
+    look: LookConfig = field(default_factory=LookConfig)
+    """The camera's optics and the light (:data:`volec.synth.render.LOOKS`): by default what a
+    phone records (edges integrated over the pixel, a soft light, optical blur)."""
+    texture_contrast: float = 0.6
+    """Contrast of the food's fine grain and speckles, relative to the first benchmark's
+    procedural textures (which were sharper and more contrasted than real skins); items with
+    smooth skins are fainter still (:attr:`volec.synth.scene.Palette.grain`)."""
+    shot_noise: float = 1e-4
+    """Photon noise: its variance in linear intensity (0..1) per unit of intensity."""
+    image_noise_std: float = 1.0
+    """Read noise standard deviation, in 8-bit levels."""
     exposure_variation: float = 0.03
     """Relative frame-to-frame auto-exposure change."""
-    jpeg_quality: int = 92
+    jpeg_quality: int = 90
     """JPEG quality of the frames."""
     masks_in_capture: bool = True
     """Also give the capture the exact food masks (as a perfect segmentation model would)."""
@@ -127,8 +136,14 @@ class SynthConfig:
         return cfg
 
 
+#: The first benchmark's look: one ray per pixel centre, a point light, no blur, no photon
+#: noise, the full procedural texture contrast.
+SHARP = {"look": LOOKS["sharp"], "texture_contrast": 1.0, "shot_noise": 0.0,
+         "image_noise_std": 1.5, "jpeg_quality": 92}
+
 PRESETS: dict[str, SynthConfig] = {
     "default": SynthConfig(),
+    "sharp": SynthConfig(**SHARP),
     "half_orbit": SynthConfig(trajectory=TrajectoryConfig(arc_deg=180.0)),
     "drift_1cm": SynthConfig(drift=DriftConfig(position_m=0.01, rotation_deg=0.6)),
     "quick": SynthConfig(
@@ -136,7 +151,8 @@ PRESETS: dict[str, SynthConfig] = {
         mesh_resolution=64,
     ),
 }
-"""Named configs: ``default`` (100 frames, full orbit), ``half_orbit``, ``drift_1cm``, ``quick``."""
+"""Named configs: ``default`` (100 frames, full orbit, a phone's look), ``sharp`` (the same with
+the first benchmark's look), ``half_orbit``, ``drift_1cm``, ``quick``."""
 
 
 # ----------------------------------------------------------------------------- rendering
@@ -153,10 +169,13 @@ def _render_frame(args: tuple[int, np.ndarray, SynthConfig]) -> tuple[bytes, byt
     index, T_scene_from_cam, cfg = args
     renderer: Renderer = _WORKER["renderer"]
     K = cfg.intrinsics.K
-    view = renderer.render(K, cfg.width, cfg.height, T_scene_from_cam)
+    view = renderer.render(K, cfg.width, cfg.height, T_scene_from_cam, cfg.look)
     rng = np.random.default_rng([cfg.seed, index, 7])
     gain = 1.0 + cfg.exposure_variation * np.sin(0.15 * index + cfg.seed)
-    img = to_srgb8(view.rgb * gain).astype(float)
+    linear = np.clip(view.rgb * gain, 0.0, 1.0)
+    if cfg.shot_noise > 0:
+        linear = linear + rng.normal(size=linear.shape) * np.sqrt(cfg.shot_noise * linear)
+    img = to_srgb8(linear).astype(float)
     img += rng.normal(scale=cfg.image_noise_std, size=img.shape)
     img8 = np.clip(np.round(img), 0, 255).astype(np.uint8)
     jpg, png = io.BytesIO(), io.BytesIO()
@@ -207,7 +226,8 @@ def plan_capture(item: str, cfg: SynthConfig) -> SynthScene:
     rng = np.random.default_rng([cfg.seed, stable_seed(item)])
     food = item_mesh(item, cfg.mesh_resolution)
     texture_seed = int(rng.integers(2**31))
-    scene = build_scene(food, item, seed=texture_seed, yaw_rad=rng.uniform(0, 2 * np.pi))
+    scene = build_scene(food, item, seed=texture_seed, yaw_rad=rng.uniform(0, 2 * np.pi),
+                        texture_contrast=cfg.texture_contrast)
     lo, hi = scene.food.bounds
     centre = (lo + hi) / 2
     radius = float(np.linalg.norm(hi - lo) / 2)
@@ -373,10 +393,12 @@ def write_benchmark(
 
 
 def render_preview(item: str, size_px: int = 320, seed: int = 0,
-                   elevation_deg: float = 35.0) -> np.ndarray:
-    """A square 8-bit RGB picture of ``item`` on its plate, for galleries."""
+                   elevation_deg: float = 35.0, cfg: SynthConfig | None = None) -> np.ndarray:
+    """A square 8-bit RGB picture of ``item`` on its plate, for galleries, with the look of
+    ``cfg`` (the default preset's)."""
+    cfg = cfg or PRESETS["default"]
     food = item_mesh(item)
-    scene = build_scene(food, item, seed=seed, yaw_rad=0.6)
+    scene = build_scene(food, item, seed=seed, yaw_rad=0.6, texture_contrast=cfg.texture_contrast)
     lo, hi = scene.food.bounds
     centre = (lo + hi) / 2
     radius = float(np.linalg.norm(hi - lo) / 2)
@@ -387,7 +409,7 @@ def render_preview(item: str, size_px: int = 320, seed: int = 0,
     T = look_at_opencv(eye, centre, np.array([0.0, 0.0, 1.0]))
     f = size_px / 2 / np.tan(np.radians(20))
     K = np.array([[f, 0, (size_px - 1) / 2], [0, f, (size_px - 1) / 2], [0, 0, 1.0]])
-    return to_srgb8(Renderer(scene).render(K, size_px, size_px, T).rgb)
+    return to_srgb8(Renderer(scene).render(K, size_px, size_px, T, cfg.look).rgb)
 
 
 def load_truth(out: Path) -> dict[str, Any]:

@@ -38,17 +38,20 @@ class Palette:
     """Fraction of the surface covered by speckles."""
     top: tuple[float, float, float] | None = None
     """Colour of upward-facing surface (icing, crust, chocolate), or None."""
+    grain: float = 1.0
+    """Contrast of the fine grain and the speckles relative to the others (smooth, glossy
+    skins below 1)."""
 
 
 FOOD_PALETTES: dict[str, Palette] = {
-    "apple": Palette((0.55, 0.05, 0.04), (0.75, 0.55, 0.1), (0.9, 0.8, 0.45), 0.02),
-    "orange": Palette((0.9, 0.42, 0.04), (0.95, 0.55, 0.1), (0.7, 0.3, 0.02), 0.02),
+    "apple": Palette((0.55, 0.05, 0.04), (0.75, 0.55, 0.1), (0.9, 0.8, 0.45), 0.02, grain=0.7),
+    "orange": Palette((0.9, 0.42, 0.04), (0.95, 0.55, 0.1), (0.7, 0.3, 0.02), 0.02, grain=0.8),
     "avocado": Palette((0.08, 0.14, 0.04), (0.18, 0.22, 0.06), (0.35, 0.38, 0.15), 0.01),
-    "lemon": Palette((0.9, 0.8, 0.12), (0.8, 0.75, 0.2), (0.6, 0.55, 0.05), 0.02),
+    "lemon": Palette((0.9, 0.8, 0.12), (0.8, 0.75, 0.2), (0.6, 0.55, 0.05), 0.02, grain=0.8),
     "donut": Palette((0.7, 0.42, 0.18), (0.55, 0.3, 0.12), (0.95, 0.9, 0.8), 0.015,
                      top=(0.28, 0.14, 0.07)),
     "durum": Palette((0.85, 0.72, 0.5), (0.65, 0.45, 0.25), (0.45, 0.3, 0.15), 0.012),
-    "pear": Palette((0.55, 0.6, 0.12), (0.7, 0.55, 0.15), (0.35, 0.3, 0.1), 0.02),
+    "pear": Palette((0.55, 0.6, 0.12), (0.7, 0.55, 0.15), (0.35, 0.3, 0.1), 0.02, grain=0.8),
     "chocolate_cake": Palette((0.2, 0.1, 0.05), (0.3, 0.16, 0.08), (0.55, 0.4, 0.3), 0.01,
                               top=(0.12, 0.06, 0.03)),
     "chocolate_croissant": Palette((0.72, 0.42, 0.14), (0.5, 0.26, 0.08), (0.9, 0.75, 0.5),
@@ -56,17 +59,18 @@ FOOD_PALETTES: dict[str, Palette] = {
     "samosa": Palette((0.78, 0.55, 0.22), (0.6, 0.38, 0.12), (0.35, 0.2, 0.08), 0.012),
     "apple_pie": Palette((0.8, 0.58, 0.3), (0.6, 0.38, 0.15), (0.95, 0.85, 0.6), 0.012,
                          top=(0.68, 0.42, 0.16)),
-    "chocolate_bomb": Palette((0.18, 0.09, 0.05), (0.3, 0.18, 0.1), (0.75, 0.65, 0.5), 0.015),
+    "chocolate_bomb": Palette((0.18, 0.09, 0.05), (0.3, 0.18, 0.1), (0.75, 0.65, 0.5), 0.015,
+                              grain=0.5),
     "empanadilla": Palette((0.82, 0.6, 0.28), (0.65, 0.42, 0.16), (0.4, 0.25, 0.1), 0.012),
     "falafel": Palette((0.45, 0.3, 0.12), (0.3, 0.2, 0.08), (0.25, 0.35, 0.1), 0.006),
     "french_bread": Palette((0.82, 0.6, 0.3), (0.6, 0.38, 0.14), (0.95, 0.9, 0.75), 0.015),
     "paxoco_mini": Palette((0.75, 0.5, 0.22), (0.55, 0.32, 0.12), (0.95, 0.9, 0.8), 0.012),
     "napolitana": Palette((0.8, 0.55, 0.22), (0.55, 0.32, 0.1), (0.25, 0.12, 0.06), 0.012),
-    "capsicum": Palette((0.7, 0.04, 0.03), (0.5, 0.05, 0.02), (0.9, 0.5, 0.4), 0.025),
+    "capsicum": Palette((0.7, 0.04, 0.03), (0.5, 0.05, 0.02), (0.9, 0.5, 0.4), 0.025, grain=0.5),
     "chocolate_panettone": Palette((0.62, 0.38, 0.15), (0.4, 0.22, 0.08), (0.15, 0.07, 0.04),
                                    0.015, top=(0.45, 0.25, 0.1)),
     "banana": Palette((0.88, 0.75, 0.12), (0.7, 0.62, 0.1), (0.3, 0.2, 0.05), 0.02,
-                      speckle_density=0.08),
+                      speckle_density=0.08, grain=0.6),
     "yellow_cane": Palette((0.9, 0.72, 0.3), (0.7, 0.5, 0.2), (0.98, 0.95, 0.85), 0.015),
 }
 
@@ -89,18 +93,21 @@ class Scene:
     """The food alone, as placed in the scene (the ground-truth mesh)."""
     noise: SolidNoise = field(repr=False, default_factory=lambda: SolidNoise(0))
     """Texture noise (seeded)."""
+    texture_contrast: float = 1.0
+    """Scale of the food's fine grain and speckles (with the palette's own ``grain``)."""
 
     def colour(self, label: int, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """Albedo (N, 3) of object ``label`` at world ``points`` with unit ``normals``."""
         if label == FOOD:
-            return _palette_colour(self.food_palette, self.noise, points, normals)
+            return _palette_colour(self.food_palette, self.noise, points, normals,
+                                   self.texture_contrast * self.food_palette.grain)
         if label == PLATE:
             return _plate_colour(self.noise, points, self.plate_radius_m)
         return _table_colour(self.noise, points)
 
 
 def _palette_colour(
-    pal: Palette, noise: SolidNoise, p: np.ndarray, normals: np.ndarray
+    pal: Palette, noise: SolidNoise, p: np.ndarray, normals: np.ndarray, contrast: float = 1.0
 ) -> np.ndarray:
     blotch = smoothstep(0.35, 0.65, noise.fractal(p, 1.0 / pal.blotch_size_m, octaves=2))
     c = np.asarray(pal.base) * (1 - blotch[:, None]) + np.asarray(pal.second) * blotch[:, None]
@@ -109,10 +116,11 @@ def _palette_colour(
         top = np.asarray(pal.top) * (0.85 + 0.3 * blotch[:, None])
         c = c * (1 - upward) + top * upward
     grain = noise.fractal(p, 1.0 / pal.detail_size_m, octaves=2)
-    c = c * (0.7 + 0.6 * grain)[:, None]
+    c = c * (1.0 - 0.3 * contrast + 0.6 * contrast * grain)[:, None]
     spots = noise.value(p, 0.5 / pal.detail_size_m, octave=6)
     speck = smoothstep(1.0 - pal.speckle_density, 1.0 - pal.speckle_density + 0.05, spots)
-    c = c * (1 - 0.85 * speck[:, None]) + np.asarray(pal.speckle) * 0.85 * speck[:, None]
+    mix = min(0.85 * contrast, 0.85) * speck[:, None]
+    c = c * (1 - mix) + np.asarray(pal.speckle) * mix
     return np.clip(c, 0.0, 1.0)
 
 
@@ -142,8 +150,10 @@ def _table_colour(noise: SolidNoise, p: np.ndarray) -> np.ndarray:
     return np.clip(c, 0.0, 1.0)
 
 
-def build_scene(food: trimesh.Trimesh, item: str, seed: int, yaw_rad: float = 0.0) -> Scene:
-    """Put ``food`` (resting on z = 0) on a plate on a table, turned by ``yaw_rad``."""
+def build_scene(food: trimesh.Trimesh, item: str, seed: int, yaw_rad: float = 0.0,
+                texture_contrast: float = 1.0) -> Scene:
+    """Put ``food`` (resting on z = 0) on a plate on a table, turned by ``yaw_rad``; the
+    food's fine texture at ``texture_contrast`` (1: the first benchmark's)."""
     food = food.copy()
     food.apply_transform(trimesh.transformations.rotation_matrix(yaw_rad, [0, 0, 1]))
     lo, hi = food.bounds
@@ -164,4 +174,5 @@ def build_scene(food: trimesh.Trimesh, item: str, seed: int, yaw_rad: float = 0.
         plate_radius_m=plate_radius,
         food=food,
         noise=SolidNoise(seed),
+        texture_contrast=texture_contrast,
     )
