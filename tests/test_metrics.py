@@ -91,3 +91,14 @@ def test_a_mesh_offset_gives_the_volume_it_implies():
     assert scores["mesh_offset_ml"] == pytest.approx(exact_ml, rel=0.03)
     assert scores["mesh_offset_pct"] == pytest.approx(100 * exact_ml / (truth.volume * 1e6),
                                                       rel=0.03)
+
+
+def test_a_misplaced_mesh_is_aligned_before_its_shape_offset_is_measured():
+    truth = trimesh.creation.icosphere(subdivisions=6, radius=0.04)
+    grown = trimesh.creation.icosphere(subdivisions=5, radius=0.0403)
+    grown.apply_translation([0.0015, -0.001, 0.0])  # the poses put it 1.8 mm off
+    scores = mesh_offset_scores(grown, truth)
+    assert scores["mesh_signed_p90_m"] - scores["mesh_signed_p10_m"] > 0.002  # one side out
+    assert scores["mesh_misplacement_m"] == pytest.approx(np.hypot(0.0015, 0.001), abs=1e-4)
+    assert scores["mesh_aligned_signed_median_m"] == pytest.approx(0.0003, abs=2e-5)
+    assert scores["mesh_aligned_signed_p90_m"] - scores["mesh_aligned_signed_p10_m"] < 1e-4

@@ -104,6 +104,11 @@ class DenseConfig:
     """... and within this fraction of the depth."""
     geometric_min_views: int = 2
     """Neighbour depth maps that must agree for a depth to be kept."""
+    min_view_cosine: float = 0.0
+    """A depth whose surface the reference camera sees more obliquely than this (the cosine
+    between the surface normal and the direction to the camera) is dropped: near an occluding
+    contour a window mixes the surface with what lies behind it, and grazing depths come out
+    too far. 0 keeps all."""
     fusion_voxel_m: float = 0.0005
     """Voxel size of the final merge, metres (0 keeps every point)."""
     planes_per_chunk: int = 16
@@ -628,9 +633,13 @@ def fuse_depth_maps(plan: DensePlan, maps: dict[int, DepthMap], cfg: DenseConfig
         if not len(X):
             continue
         view = plan.views[r]
-        xyz.append(X)
-        rgb.append(view.rgb[pix[:, 0], pix[:, 1]])
-        normals.append(depth_normals(view, maps[r].depth_m)[pix[:, 0], pix[:, 1]])
+        n = depth_normals(view, maps[r].depth_m)[pix[:, 0], pix[:, 1]]
+        to_camera = view.centre - X
+        cosine = np.sum(n * to_camera, axis=1) / np.linalg.norm(to_camera, axis=1)
+        frontal = cosine >= cfg.min_view_cosine
+        xyz.append(X[frontal])
+        rgb.append(view.rgb[pix[frontal, 0], pix[frontal, 1]])
+        normals.append(n[frontal])
     if not xyz:
         raise DenseError(
             "no depth survived the multi-view consistency check: the frames may be blurred, "

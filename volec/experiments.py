@@ -61,8 +61,9 @@ class Scenario:
 
 
 def scenarios(quick: bool) -> dict[str, Scenario]:
-    """The capture conditions: full orbit at the default 5 mm drift, a half orbit, and 1 cm
-    drift. ``quick`` gives small captures for CI (20 frames over 120 degrees)."""
+    """The capture conditions: full orbit at the default 5 mm drift, a half orbit, 1 cm drift
+    (all with a phone's look), and the full orbit with the first benchmark's sharp look.
+    ``quick`` gives small captures for CI (20 frames over 120 degrees)."""
     if quick:
         small = SYNTH_PRESETS["default"].with_(n_frames=20, arc_deg=120.0)
         return {"quick": Scenario("quick", small)}
@@ -70,6 +71,7 @@ def scenarios(quick: bool) -> dict[str, Scenario]:
         "full_orbit": Scenario("full_orbit", SYNTH_PRESETS["default"]),
         "half_orbit": Scenario("half_orbit", SYNTH_PRESETS["half_orbit"]),
         "drift_1cm": Scenario("drift_1cm", SYNTH_PRESETS["drift_1cm"]),
+        "full_orbit_sharp": Scenario("full_orbit_sharp", SYNTH_PRESETS["sharp"]),
     }
 
 
@@ -686,6 +688,8 @@ def attribution_table(raw: pd.DataFrame) -> pd.DataFrame:
                 "mesh_signed_median_mm": 1000 * r[f"{variant}_mesh_signed_median_m"],
                 "mesh_signed_p10_mm": 1000 * r[f"{variant}_mesh_signed_p10_m"],
                 "mesh_signed_p90_mm": 1000 * r[f"{variant}_mesh_signed_p90_m"],
+                "aligned_mesh_signed_median_mm": 1000 * r[
+                    f"{variant}_mesh_aligned_signed_median_m"],
                 "mesh_offset_implies_pct": r[f"{variant}_mesh_offset_pct"],
                 "volume_error_pct": r[f"{variant}_error_pct"]})
     table = pd.DataFrame(rows)
@@ -716,12 +720,17 @@ def surface_offset_table(raw: pd.DataFrame, tag: str = "completion") -> pd.DataF
     """Per item, how far the masked cloud and the final mesh (of variant ``tag``) lie outside
     (+) or inside (-) the true surface, in mm (median, 10th and 90th percentile of signed
     distances), the volume the mesh's offset implies (mean signed distance times area, as a
-    percentage of the true volume) beside the volume error, then the means."""
+    percentage of the true volume), how far the poses misplaced the mesh and its signed
+    distances once rigidly aligned (the shape's own offset), beside the volume error; then the
+    means and the means of magnitudes."""
     table = pd.DataFrame({"item": raw["label"]})
     for source, prefix in (("cloud", "masked"), ("mesh", f"{tag}_mesh")):
         for stat in ("median", "p10", "p90"):
             table[f"{source}_signed_{stat}_mm"] = 1000 * raw[f"{prefix}_signed_{stat}_m"]
     table["mesh_offset_implies_pct"] = raw[f"{tag}_mesh_offset_pct"]
+    table["mesh_misplacement_mm"] = 1000 * raw[f"{tag}_mesh_misplacement_m"]
+    for stat in ("median", "p10", "p90"):
+        table[f"aligned_mesh_signed_{stat}_mm"] = 1000 * raw[f"{tag}_mesh_aligned_signed_{stat}_m"]
     table["volume_error_pct"] = 100 * (raw[f"{tag}_ml"] / raw["gt_ml"] - 1)
     means = table.drop(columns="item").mean().to_frame().T
     means.insert(0, "item", "mean")

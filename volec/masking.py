@@ -69,6 +69,17 @@ class MaskingConfig:
     """A point outside the food mask in at most this many of the views that see it is still
     food, whatever ``min_inside_fraction`` says: one frame's bad mask (a missed chunk) cannot
     remove food."""
+    decision_neighbours: int = 16
+    """A point is judged at the mean position of its nearest neighbours (this many, within
+    ``decision_radius_m``), not at its own: judged alone, a point that stereo noise put
+    outside the surface falls outside a silhouette and goes, while one put inside stays, so
+    the food cloud shrinks. Judged at 16 neighbours, the masked cloud's median signed distance
+    to the true surface moved out by 0.02-0.07 mm (mean 0.055 mm) on six benchmark items
+    (apple, banana, pear, capsicum, croissant, empanadilla; first look), with no more points
+    far from it. 1: each point alone (the paper's rule)."""
+    decision_radius_m: float = 0.0015
+    """Neighbours farther than this do not count; a point with fewer than 4 within it is
+    judged alone (an isolated stray point is not rescued by the surface nearby)."""
     checks: MaskCheckConfig = field(default_factory=MaskCheckConfig)
     """Which masks are unusable (:func:`check_masks`)."""
 
@@ -157,6 +168,20 @@ def mask_votes(cloud: PointCloud, capture: Capture, T_world_from_cam: np.ndarray
     return seen, inside
 
 
+def decision_positions(xyz: np.ndarray, neighbours: int, radius_m: float) -> np.ndarray:
+    """Where each point is judged: the mean of its ``neighbours`` nearest points (itself
+    included) within ``radius_m``; its own position when fewer than 4 are that close."""
+    if neighbours <= 1 or len(xyz) < neighbours:
+        return xyz
+    from scipy.spatial import cKDTree
+
+    distance, index = cKDTree(xyz).query(xyz, k=neighbours, distance_upper_bound=radius_m)
+    near = np.isfinite(distance)
+    safe = np.where(near, index, 0)
+    mean = (xyz[safe] * near[..., None]).sum(axis=1) / near.sum(axis=1, keepdims=True)
+    return np.where((near.sum(axis=1) >= 4)[:, None], mean, xyz)
+
+
 def usable_masks(capture: Capture, bad: dict[str, str]) -> np.ndarray:
     """(N,) True for the frames whose mask is not among the ``bad`` ones."""
     return np.array([f.name not in bad for f in capture.frames], bool)
@@ -181,7 +206,9 @@ def mask_cloud(cloud: PointCloud, capture: Capture, T_world_from_cam: np.ndarray
     start = time.perf_counter()
     bad = check_masks(capture, cfg.checks)
     use = np.asarray(registered, bool) & usable_masks(capture, bad)
-    seen, inside = mask_votes(cloud, capture, T_world_from_cam, use, cfg.mask_dilation_px)
+    judged = decision_positions(cloud.xyz, cfg.decision_neighbours, cfg.decision_radius_m)
+    seen, inside = mask_votes(PointCloud(judged), capture, T_world_from_cam, use,
+                              cfg.mask_dilation_px)
     enough_views = seen >= cfg.min_views
     # The small tolerance keeps 1.0 an exact "every view" without float trouble.
     allowed_outside = np.maximum(cfg.max_outside_views, (1.0 - cfg.min_inside_fraction) * seen)
