@@ -148,7 +148,7 @@ def signed_distance_figure(surfaces: dict[str, tuple[trimesh.Trimesh, np.ndarray
         target, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
         for row, elevation in enumerate((40.0, -35.0)):
             el = np.radians(elevation)
-            eye = target + 3.6 * radius * (np.cos(el) * side + np.sin(el) * up)
+            eye = target + 2.6 * radius * (np.cos(el) * side + np.sin(el) * up)
             image = render_scalar_mesh(mesh, 1000 * np.asarray(signed_m), eye, target, up,
                                        limit_mm)
             axes[row, col].imshow(image)
