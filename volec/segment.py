@@ -1,0 +1,593 @@
+"""Food segmentation: one binary food mask per frame, without any learned model.
+
+In: a :class:`~volec.capture.Capture` (its images), the SfM stage's result (refined metric
+poses, the sparse points) and a :class:`SegmentConfig`. Out: a :class:`MaskSet` (a mask per
+frame at the capture's resolution, per-frame area and confidence, the frames where it failed
+and why) and, on disk, ``WORKDIR/masks/*.png`` with ``WORKDIR/segment.json``.
+:func:`given_masks` wraps a capture's own masks in the same :class:`MaskSet`, read once, which
+dense stereo, masking and meshing then use.
+
+A capture is an orbit around one item resting on a plate or a table, with metric poses, so
+geometry finds the item before any colour is looked at (after Campbell et al., "Automatic 3D
+object segmentation in multiple views using volumetric graph-cuts", IVC 2010):
+
+1. the point the cameras fixate (the point nearest to all optical axes);
+2. the support plane: RANSAC on the sparse SfM points around that point, facing the cameras;
+3. the item: the cluster of sparse points standing above the plane nearest to the fixation
+   point (another object beside it is another cluster, and is left out);
+4. on a subset of evenly spread views, OpenCV's GrabCut (a colour graph cut) seeded from the
+   projection of the item's points (probable food), of the plane's points around it (sure
+   background: plate, table and shadows cast on them) and the image border;
+5. the visual hull of those masks on a voxel grid (a voxel is food when nearly all views that
+   see it agree, so one view's mistake is outvoted), cut at the support plane;
+6. every frame's mask: the hull's silhouette in that frame, refined by GrabCut in a narrow
+   band around its border (colour decides the last pixels, geometry everything else).
+
+No weights are downloaded or shipped: it needs only OpenCV, SciPy and open3d.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PIL import Image
+from scipy import ndimage
+
+from volec.capture import Capture, Intrinsics, read_mask
+from volec.errors import VolecError
+
+log = logging.getLogger(__name__)
+
+
+class SegmentationError(VolecError):
+    """The food could not be found or segmented in this capture."""
+
+
+@dataclass(frozen=True)
+class SegmentConfig:
+    """Options of the segmentation stage."""
+
+    search_radius_factor: float = 0.6
+    """Sparse points farther from the fixation point than this times the median camera
+    distance are not considered (the room beyond the table)."""
+    plane_inlier_m: float = 0.0015
+    """RANSAC inlier distance of the support plane, metres."""
+    max_plane_tilt_deg: float = 35.0
+    """The support plane's normal must point within this angle of the cameras' mean up
+    direction (or of the capture's stated up)."""
+    min_height_m: float = 0.004
+    """Sparse points at least this far above the support plane may be food."""
+    cluster_eps_m: float = 0.008
+    """Neighbouring food points are at most this far apart (DBSCAN radius)."""
+    min_cluster_points: int = 25
+    """An item needs at least this many sparse points."""
+    max_fixation_gap_m: float = 0.05
+    """The item's nearest point lies at most this far from the fixation point."""
+    hull_views: int = 24
+    """Views, evenly spread through the capture, whose GrabCut masks make the visual hull."""
+    work_long_side_px: int = 480
+    """GrabCut runs on images downscaled to at most this long side."""
+    grabcut_iterations: int = 4
+    """GrabCut iterations on the hull views."""
+    seed_splat_px: int = 3
+    """Radius of the disc each projected item point paints as probable food, work pixels."""
+    probable_margin_px: int = 25
+    """How far beyond the item's projected points GrabCut may grow the food, work pixels."""
+    voxel_m: float = 0.001
+    """Edge of the visual hull's voxels, metres."""
+    hull_max_outside_views: int = 1
+    """A voxel is food when at most this many of the hull views put it outside their mask:
+    one view's mistake is outvoted, but two views that see empty space are believed (with a
+    share of the views instead, the hull swells where few views constrain it, above the top
+    and around the foot)."""
+    hull_margin_m: float = 0.02
+    """The hull's grid reaches this far beyond the item's sparse points."""
+    band_px: int = 4
+    """Half-width of the band around the hull's silhouette that GrabCut refines, capture
+    pixels."""
+    band_iterations: int = 2
+    """GrabCut iterations in the band."""
+    min_confidence: float = 0.85
+    """A frame whose refined mask overlaps the hull's silhouette less than this (IoU) keeps
+    the silhouette, and is listed."""
+    max_border_frames: float = 0.5
+    """More frames than this share with the food touching the image border is an error."""
+
+
+@dataclass(frozen=True, eq=False)
+class MaskSet:
+    """One food mask per frame of a capture, read or made once and handed to the stages."""
+
+    names: tuple[str, ...]
+    """The frames' names, in capture order."""
+    masks: tuple[np.ndarray, ...]
+    """(H, W) bool food masks at each frame's image size."""
+    source: str
+    """``given`` (the capture's own masks) or ``auto`` (:func:`segment`)."""
+    confidence: tuple[float, ...] = ()
+    """Per frame, 0..1: how far the mask is to be believed (1 for given masks)."""
+    failed: dict[str, str] = field(default_factory=dict)
+    """Frames where segmentation fell back or failed, with why."""
+    summary: dict[str, Any] = field(default_factory=dict)
+    """Counts, the scene geometry found, timings (JSON-able)."""
+
+    def __len__(self) -> int:
+        return len(self.masks)
+
+    def mask(self, index: int) -> np.ndarray:
+        """The mask of the frame at ``index``."""
+        return self.masks[index]
+
+    @property
+    def area_fraction(self) -> list[float]:
+        """Per frame, the share of the image the food covers."""
+        return [float(m.mean()) for m in self.masks]
+
+
+def given_masks(capture: Capture) -> MaskSet:
+    """The capture's own food masks, read once (every frame must have one)."""
+    from volec.masking import require_masks
+
+    require_masks(capture)
+    masks = tuple(read_mask(f) for f in capture.frames)
+    return MaskSet(tuple(f.name for f in capture.frames), masks, "given",
+                   tuple(1.0 for _ in masks))
+
+
+# ----------------------------------------------------------------------------- geometry
+
+
+@dataclass(frozen=True)
+class SceneGeometry:
+    """Where the item is, from the sparse points."""
+
+    fixation: np.ndarray
+    """The point the cameras look at, metres."""
+    normal: np.ndarray
+    """Unit normal of the support plane, towards the cameras."""
+    offset_m: float
+    """The plane is ``normal . x + offset_m = 0``."""
+    item_points: np.ndarray
+    """(M, 3) the sparse points of the item."""
+    plane_points: np.ndarray
+    """(K, 3) the sparse points of the support plane around the item."""
+    other_clusters: int
+    """Other clusters standing on the plane (a cup, a utensil) that were left out."""
+
+    def height_m(self, points: np.ndarray) -> np.ndarray:
+        """Heights (N,) of ``points`` above the plane."""
+        return np.asarray(points) @ self.normal + self.offset_m
+
+
+def _fixation(T_world_from_cam: np.ndarray) -> np.ndarray:
+    centres = T_world_from_cam[:, :3, 3]
+    axes = T_world_from_cam[:, :3, 2]
+    projectors = np.eye(3)[None] - axes[:, :, None] * axes[:, None, :]
+    return np.linalg.lstsq(projectors.sum(axis=0),
+                           np.einsum("nij,nj->i", projectors, centres), rcond=None)[0]
+
+
+def _support_plane(points: np.ndarray, up: np.ndarray, cfg: SegmentConfig, seed: int
+                   ) -> tuple[np.ndarray, float, np.ndarray]:
+    """(normal towards ``up``, offset, inlier mask) of the dominant level plane in
+    ``points``; planes tilted more than allowed are skipped (up to three tries)."""
+    import open3d as o3d
+
+    o3d.utility.random.seed(seed)
+    remaining = np.arange(len(points))
+    for _ in range(3):
+        if len(remaining) < 50:
+            break
+        pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points[remaining]))
+        plane, inliers = pcd.segment_plane(cfg.plane_inlier_m, 3, 2000)
+        normal = np.asarray(plane[:3], float)
+        scale = np.linalg.norm(normal)
+        normal, offset = normal / scale, float(plane[3]) / scale
+        if normal @ up < 0:
+            normal, offset = -normal, -offset
+        if np.degrees(np.arccos(np.clip(normal @ up, -1, 1))) <= cfg.max_plane_tilt_deg:
+            mask = np.zeros(len(points), bool)
+            mask[remaining[inliers]] = True
+            return normal, offset, mask
+        remaining = np.delete(remaining, inliers)
+    raise SegmentationError(
+        "no level plate or table under the cameras' point of view: segmentation needs the "
+        "food resting on a surface the frames show around it (or give masks)")
+
+
+def find_item(T_world_from_cam: np.ndarray, points: np.ndarray, up: np.ndarray | None,
+              cfg: SegmentConfig) -> SceneGeometry:
+    """The support plane and the item on it, from the registered cameras (N, 4, 4) and the
+    sparse points (M, 3) (see the module docstring, steps 1-3)."""
+    import open3d as o3d
+
+    fixation = _fixation(T_world_from_cam)
+    centres = T_world_from_cam[:, :3, 3]
+    distance = float(np.median(np.linalg.norm(centres - fixation, axis=1)))
+    if up is None:  # the cameras look down at the plate: up is where they are
+        up = np.mean(centres - fixation, axis=0)
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    near = np.linalg.norm(points - fixation, axis=1) < cfg.search_radius_factor * distance
+    local = points[near]
+    if len(local) < cfg.min_cluster_points + 50:
+        raise SegmentationError(f"only {len(local)} sparse points around the point the "
+                                "cameras look at: too little texture to find the food")
+    normal, offset, on_plane = _support_plane(local, up, cfg, 0)
+    height = local @ normal + offset
+    above = np.flatnonzero(height > cfg.min_height_m)
+    if len(above) < cfg.min_cluster_points:
+        raise SegmentationError("nothing stands on the plate at the point the cameras look "
+                                "at: aim the orbit at the food (or give masks)")
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(local[above]))
+    labels = np.asarray(pcd.cluster_dbscan(cfg.cluster_eps_m, 4))
+    clusters = [above[labels == k] for k in range(labels.max() + 1)
+                if (labels == k).sum() >= cfg.min_cluster_points]
+    if not clusters:
+        raise SegmentationError("no object at the point the cameras look at: the points above "
+                                "the plate are scattered (or give masks)")
+    gaps = [float(np.linalg.norm(local[c] - fixation, axis=1).min()) for c in clusters]
+    best = int(np.argmin(gaps))
+    if gaps[best] > cfg.max_fixation_gap_m:
+        raise SegmentationError(
+            f"no object at the point the cameras look at (the nearest is {gaps[best] * 1000:.0f}"
+            " mm away): aim the orbit at the food (or give masks)")
+    item = local[clusters[best]]
+    ring = np.linalg.norm((local - item.mean(axis=0)) - np.outer(height, normal), axis=1)
+    extent = float(np.percentile(np.linalg.norm(item - item.mean(axis=0), axis=1), 95))
+    plane_points = local[on_plane & (ring < 3.0 * extent + 0.02)]
+    return SceneGeometry(fixation, normal, offset, item, plane_points, len(clusters) - 1)
+
+
+# ----------------------------------------------------------------------------- one view
+
+
+@dataclass(frozen=True)
+class _View:
+    """A frame at GrabCut's working resolution."""
+
+    rgb: np.ndarray
+    intrinsics: Intrinsics
+    T_cam_from_world: np.ndarray
+    factor: float
+
+
+def _work_view(capture: Capture, index: int, T_world_from_cam: np.ndarray,
+               cfg: SegmentConfig) -> _View:
+    frame = capture.frames[index]
+    intr = frame.intrinsics
+    with Image.open(frame.image_path) as im:
+        rgb = im.convert("RGB")
+        factor = min(1.0, cfg.work_long_side_px / max(im.size))
+        if factor < 1.0:
+            rgb = rgb.resize((round(im.size[0] * factor), round(im.size[1] * factor)),
+                             Image.Resampling.BOX)
+        rgb = np.asarray(rgb)
+    return _View(rgb, intr.scaled(factor) if factor < 1.0 else intr,
+                 np.linalg.inv(T_world_from_cam), factor)
+
+
+def _pixels(view: _View, points: np.ndarray) -> np.ndarray:
+    """Integer pixel positions (N, 2) (x, y) of world points; -1 where not in the image."""
+    cam = points @ view.T_cam_from_world[:3, :3].T + view.T_cam_from_world[:3, 3]
+    uv = view.intrinsics.project(cam)
+    h, w = view.rgb.shape[:2]
+    out = np.full((len(points), 2), -1)
+    ok = np.isfinite(uv).all(axis=1)
+    iu = np.round(uv[ok]).astype(int)
+    inside = (iu[:, 0] >= 0) & (iu[:, 0] < w) & (iu[:, 1] >= 0) & (iu[:, 1] < h)
+    out[np.flatnonzero(ok)[inside]] = iu[inside]
+    return out
+
+
+def _splat(shape: tuple[int, int], pix: np.ndarray, radius: int) -> np.ndarray:
+    image = np.zeros(shape, bool)
+    ok = pix[:, 0] >= 0
+    image[pix[ok, 1], pix[ok, 0]] = True
+    return ndimage.binary_dilation(image, iterations=radius) if radius else image
+
+
+def seed_labels(view: _View, geometry: SceneGeometry, cfg: SegmentConfig) -> np.ndarray:
+    """GrabCut's starting labels for one view: the item's projected points (closed and
+    filled) probable food, a margin around them probable background, the plane's projected
+    points outside that region and the rest of the image sure background."""
+    import cv2
+
+    shape = view.rgb.shape[:2]
+    item = _splat(shape, _pixels(view, geometry.item_points), cfg.seed_splat_px)
+    item = ndimage.binary_fill_holes(ndimage.binary_closing(item, iterations=4))
+    reach = ndimage.binary_dilation(item, iterations=cfg.probable_margin_px)
+    plane = _splat(shape, _pixels(view, geometry.plane_points), 1) & ~item
+    labels = np.full(shape, cv2.GC_BGD, np.uint8)
+    labels[reach] = cv2.GC_PR_BGD
+    labels[item] = cv2.GC_PR_FGD
+    labels[plane & ~ndimage.binary_dilation(item, iterations=2)] = cv2.GC_BGD
+    return labels
+
+
+def grabcut(rgb: np.ndarray, labels: np.ndarray, iterations: int) -> np.ndarray:
+    """GrabCut (OpenCV) from ``labels``, on the crop around the undecided pixels; the food
+    mask (bool). Pixels labelled sure stay as they are."""
+    import cv2
+
+    undecided = (labels == cv2.GC_PR_FGD) | (labels == cv2.GC_PR_BGD)
+    if not undecided.any():
+        return labels == cv2.GC_FGD
+    ys, xs = np.nonzero(undecided)
+    pad = 8
+    y0, y1 = max(ys.min() - pad, 0), min(ys.max() + pad + 1, labels.shape[0])
+    x0, x1 = max(xs.min() - pad, 0), min(xs.max() + pad + 1, labels.shape[1])
+    crop = labels[y0:y1, x0:x1].copy()
+    has_both = ((crop == cv2.GC_FGD) | (crop == cv2.GC_PR_FGD)).any() and (
+        (crop == cv2.GC_BGD) | (crop == cv2.GC_PR_BGD)).any()
+    if has_both:
+        bgd, fgd = np.zeros((1, 65)), np.zeros((1, 65))
+        cv2.grabCut(np.ascontiguousarray(rgb[y0:y1, x0:x1]), crop, None, bgd, fgd, iterations,
+                    cv2.GC_INIT_WITH_MASK)
+    out = labels == cv2.GC_FGD
+    out[y0:y1, x0:x1] = (crop == cv2.GC_FGD) | (crop == cv2.GC_PR_FGD)
+    return out
+
+
+# ----------------------------------------------------------------------------- the hull
+
+
+def hull_views(registered: np.ndarray, n: int) -> np.ndarray:
+    """Up to ``n`` registered frame indices, evenly spread through the capture."""
+    chosen = np.flatnonzero(registered)
+    if 0 < n < len(chosen):
+        chosen = chosen[np.round(np.linspace(0, len(chosen) - 1, n)).astype(int)]
+    return chosen
+
+
+def visual_hull(views: list[_View], masks: list[np.ndarray], geometry: SceneGeometry,
+                cfg: SegmentConfig) -> np.ndarray:
+    """(P, 3) the centres of the voxels that the masks' agreement keeps, above the plane
+    (step 5): a voxel is food when at most ``hull_max_outside_views`` of the views that see it
+    put it outside their (work-resolution) mask, and at least three views see it."""
+    lo = geometry.item_points.min(axis=0) - cfg.hull_margin_m
+    hi = geometry.item_points.max(axis=0) + cfg.hull_margin_m
+    # down to the plane under the item
+    foot = geometry.item_points - np.outer(geometry.height_m(geometry.item_points),
+                                           geometry.normal)
+    lo, hi = np.minimum(lo, foot.min(axis=0) - 0.005), np.maximum(hi, foot.max(axis=0) + 0.005)
+    axes = [np.arange(lo[i], hi[i], cfg.voxel_m) for i in range(3)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    grid = grid[geometry.height_m(grid) > -0.5 * cfg.voxel_m]
+    seen = np.zeros(len(grid), np.int32)
+    outside = np.zeros(len(grid), np.int32)
+    for view, mask in zip(views, masks, strict=True):
+        pix = _pixels(view, grid)
+        ok = pix[:, 0] >= 0
+        seen += ok
+        outside[ok] += ~mask[pix[ok, 1], pix[ok, 0]]
+        keep = outside <= cfg.hull_max_outside_views
+        grid, seen, outside = grid[keep], seen[keep], outside[keep]
+    return grid[seen >= 3]
+
+
+def hull_surface(voxels: np.ndarray, voxel_m: float) -> np.ndarray:
+    """The voxels (P, 3) of the hull that have an empty neighbour: its surface, all that its
+    silhouettes need (the inside is filled in the image)."""
+    index = np.round((voxels - voxels.min(axis=0)) / voxel_m).astype(int)
+    occupied = np.zeros(index.max(axis=0) + 3, bool)
+    occupied[tuple((index + 1).T)] = True
+    interior = ndimage.binary_erosion(occupied)
+    return voxels[~interior[tuple((index + 1).T)]]
+
+
+def hull_silhouette(surface: np.ndarray, intrinsics: Intrinsics, T_cam_from_world: np.ndarray,
+                    voxel_m: float) -> np.ndarray:
+    """The hull's silhouette (H, W) bool in a camera, from its surface voxels
+    (:func:`hull_surface`): each painted as the square it covers in the image, then filled."""
+    cam = surface @ T_cam_from_world[:3, :3].T + T_cam_from_world[:3, 3]
+    uv = intrinsics.project(cam)
+    h, w = intrinsics.height, intrinsics.width
+    out = np.zeros((h, w), bool)
+    ok = np.isfinite(uv).all(axis=1)
+    if not ok.any():
+        return out
+    iu = np.round(uv[ok]).astype(int)
+    inside = (iu[:, 0] >= 0) & (iu[:, 0] < w) & (iu[:, 1] >= 0) & (iu[:, 1] < h)
+    out[iu[inside, 1], iu[inside, 0]] = True
+    reach = int(np.ceil(0.5 * voxel_m * intrinsics.fx / np.median(cam[ok, 2])))
+    out = ndimage.binary_dilation(out, np.ones((2 * reach + 1, 2 * reach + 1), bool))
+    return ndimage.binary_fill_holes(ndimage.binary_closing(out, iterations=2))
+
+
+HISTOGRAM_BINS = 16
+"""Bins per colour channel of the colour models (a 16^3 histogram, smoothed)."""
+
+
+def colour_model(samples: np.ndarray) -> np.ndarray:
+    """A colour likelihood model of ``samples`` (N, 3) 0..255: the log of their smoothed,
+    normalised 3D histogram (a non-parametric stand-in for GrabCut's mixtures: OpenCV's
+    headless wheel has no EM, and a histogram is as good on a few thousand pixels)."""
+    bins = HISTOGRAM_BINS
+    index = np.clip(samples.astype(int) * bins // 256, 0, bins - 1)
+    hist = np.zeros((bins, bins, bins))
+    np.add.at(hist, (index[:, 0], index[:, 1], index[:, 2]), 1.0)
+    hist = ndimage.gaussian_filter(hist, 1.0, mode="constant") + 1e-3
+    return np.log(hist / hist.sum())
+
+
+def log_likelihood(model: np.ndarray, colours: np.ndarray) -> np.ndarray:
+    """Per colour (N, 3), its log-likelihood under a :func:`colour_model`."""
+    bins = HISTOGRAM_BINS
+    index = np.clip(colours.astype(int) * bins // 256, 0, bins - 1)
+    return model[index[:, 0], index[:, 1], index[:, 2]]
+
+
+def refine_in_band(rgb: np.ndarray, silhouette: np.ndarray, cfg: SegmentConfig,
+                   ring_px: int = 12) -> np.ndarray:
+    """The silhouette with its border decided by colour (step 6): in a band of ``band_px``
+    around it, each pixel goes to food or background by a graph cut (PyMaxflow) whose data
+    term is the likelihood of its colour under the frame's own food colours (the silhouette's
+    inside) and background colours (a ring just outside the band), and whose smoothness term
+    is cheaper across strong colour edges (as in GrabCut)."""
+    import maxflow
+
+    inner = ndimage.binary_erosion(silhouette, iterations=cfg.band_px)
+    outer = ndimage.binary_dilation(silhouette, iterations=cfg.band_px)
+    ring = ndimage.binary_dilation(outer, iterations=ring_px) & ~outer
+    band = outer & ~inner
+    if not inner.any() or not band.any() or not ring.any():
+        return silhouette
+    ys, xs = np.nonzero(outer | ring)
+    y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
+    img = rgb[y0:y1, x0:x1].astype(np.float32)
+    inner_c, band_c, ring_c = inner[y0:y1, x0:x1], band[y0:y1, x0:x1], ring[y0:y1, x0:x1]
+    edge = ndimage.binary_dilation(band_c) & ~band_c
+    food = colour_model(img[inner_c & ndimage.binary_dilation(edge, iterations=ring_px)])
+    background = colour_model(img[ring_c])
+    cost = np.zeros(band_c.shape + (2,), np.float64)
+    colours = img[band_c]
+    cost[band_c, 0] = -log_likelihood(food, colours)
+    cost[band_c, 1] = -log_likelihood(background, colours)
+    diff_x = np.sum((img[:, 1:] - img[:, :-1]) ** 2, axis=-1)
+    diff_y = np.sum((img[1:] - img[:-1]) ** 2, axis=-1)
+    beta = 1.0 / (2.0 * max(np.mean(np.concatenate([diff_x.ravel(), diff_y.ravel()])), 1e-6))
+    gamma = 25.0
+    graph = maxflow.Graph[float]()
+    nodes = graph.add_grid_nodes(band_c.shape)
+    right = np.zeros(band_c.shape)
+    right[:, :-1] = gamma * np.exp(-beta * diff_x)
+    down = np.zeros(band_c.shape)
+    down[:-1] = gamma * np.exp(-beta * diff_y)
+    graph.add_grid_edges(nodes, weights=right, structure=np.array([[0, 0, 0], [0, 0, 1],
+                                                                    [0, 0, 0]]), symmetric=True)
+    graph.add_grid_edges(nodes, weights=down, structure=np.array([[0, 0, 0], [0, 0, 0],
+                                                                   [0, 1, 0]]), symmetric=True)
+    sure = 1e9
+    source = np.where(inner_c, sure, np.where(band_c, cost[..., 1], 0.0))  # food side
+    sink = np.where(band_c, cost[..., 0], np.where(inner_c, 0.0, sure))
+    graph.add_grid_tedges(nodes, source, sink)
+    graph.maxflow()
+    is_food = ~graph.get_grid_segments(nodes)
+    out = silhouette.copy()
+    out[y0:y1, x0:x1] = np.where(band_c, is_food, inner_c | (silhouette[y0:y1, x0:x1] & ~band_c))
+    return ndimage.binary_fill_holes(out)
+
+
+# ----------------------------------------------------------------------------- the stage
+
+
+def _iou(a: np.ndarray, b: np.ndarray) -> float:
+    union = np.logical_or(a, b).sum()
+    return float(np.logical_and(a, b).sum() / union) if union else 1.0
+
+
+def segment(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarray,
+            sparse_xyz: np.ndarray, cfg: SegmentConfig | None = None,
+            progress: bool = False) -> MaskSet:
+    """Food masks for every frame of ``capture`` (see the module docstring): the poses
+    (N, 4, 4) and ``registered`` (N,) are the SfM stage's, ``sparse_xyz`` its points."""
+    from tqdm.auto import tqdm
+
+    cfg = cfg or SegmentConfig()
+    start = time.perf_counter()
+    registered = np.asarray(registered, bool)
+    up = capture.metadata.get("world_up")
+    geometry = find_item(T_world_from_cam[registered], sparse_xyz,
+                         None if up is None else np.asarray(up, float), cfg)
+    chosen = hull_views(registered, cfg.hull_views)
+    views = [_work_view(capture, int(i), T_world_from_cam[i], cfg) for i in chosen]
+    coarse = [grabcut(v.rgb, seed_labels(v, geometry, cfg), cfg.grabcut_iterations)
+              for v in tqdm(views, desc="segment: hull views", disable=not progress)]
+    voxels = visual_hull(views, coarse, geometry, cfg)
+    if len(voxels) == 0:
+        raise SegmentationError("the views do not agree on any food: the colours of food and "
+                                "plate may be too close (give masks)")
+    surface = hull_surface(voxels, cfg.voxel_m)
+    t_hull = time.perf_counter() - start
+    masks, confidence, failed = [], [], {}
+    border = 0
+    for i, frame in enumerate(tqdm(capture.frames, desc="segment: masks",
+                                   disable=not progress)):
+        sil = hull_silhouette(surface, frame.intrinsics, np.linalg.inv(T_world_from_cam[i]),
+                              cfg.voxel_m)
+        with Image.open(frame.image_path) as im:
+            rgb = np.asarray(im.convert("RGB"))
+        mask = refine_in_band(rgb, sil, cfg) if sil.any() else sil
+        agreement = _iou(mask, sil)
+        if not registered[i]:
+            failed[frame.name] = "not registered by SfM: its pose is the phone's (less exact)"
+        if agreement < cfg.min_confidence:
+            failed[frame.name] = (f"the colour refinement disagreed with the geometry "
+                                  f"(IoU {agreement:.2f}): the hull's silhouette is kept")
+            mask = sil
+        border += bool(mask[0].any() or mask[-1].any() or mask[:, 0].any() or mask[:, -1].any())
+        masks.append(mask)
+        confidence.append(round(agreement, 4))
+    if border > cfg.max_border_frames * len(capture):
+        raise SegmentationError(
+            f"the food touches the image border in {border} of {len(capture)} frames: step "
+            "back so that the whole item is in view")
+    summary = {
+        "method": "geometry seeds + GrabCut + visual hull (weights-free)",
+        "hull_views": [capture.frames[i].name for i in chosen],
+        "hull_voxels": len(voxels),
+        "item_points": len(geometry.item_points),
+        "plane_points": len(geometry.plane_points),
+        "other_objects_left_out": geometry.other_clusters,
+        "plane": {"normal": geometry.normal.tolist(), "offset_m": geometry.offset_m},
+        "fixation": geometry.fixation.tolist(),
+        "seconds": {"hull_s": round(t_hull, 2),
+                    "total_s": round(time.perf_counter() - start, 2)},
+        "config": asdict(cfg),
+    }
+    log.info("segmentation: %d masks, %d frames listed, %.1f s", len(masks), len(failed),
+             summary["seconds"]["total_s"])
+    return MaskSet(tuple(f.name for f in capture.frames), tuple(masks), "auto",
+                   tuple(confidence), failed, summary)
+
+
+def with_masks(capture: Capture, masks: MaskSet) -> Capture:
+    """``capture`` unchanged but for a note of the masks' source (its frames keep their own
+    mask files; stages take masks from the :class:`MaskSet`)."""
+    return replace(capture, metadata={**capture.metadata, "masks": masks.source})
+
+
+def save_masks(work_dir: Path, masks: MaskSet) -> Path:
+    """``WORKDIR/masks/<frame>.png`` for every frame and ``WORKDIR/segment.json`` (method,
+    config, per-frame area and confidence, failures), the record written last."""
+    import io
+
+    from volec.io import write_bytes_atomic, write_json_atomic
+    from volec.provenance import bytes_digest
+
+    work_dir = Path(work_dir)
+    record_path = work_dir / "segment.json"
+    record_path.unlink(missing_ok=True)
+    files = {}
+    for name, mask in zip(masks.names, masks.masks, strict=True):
+        relative = f"masks/{Path(name).with_suffix('.png').name}"
+        buf = io.BytesIO()
+        Image.fromarray((mask * 255).astype(np.uint8)).save(buf, format="PNG")
+        write_bytes_atomic(work_dir / relative, buf.getvalue())
+        files[relative] = bytes_digest(buf.getvalue())
+    record = {**masks.summary, "source": masks.source, "frames": list(masks.names),
+              "area_fraction": [round(a, 5) for a in masks.area_fraction],
+              "confidence": list(masks.confidence), "failed": masks.failed, "files": files}
+    write_json_atomic(record_path, record)
+    return record_path
+
+
+def load_masks(work_dir: Path) -> MaskSet:
+    """The masks a finished segmentation stage left in ``work_dir``."""
+    import json
+
+    work_dir = Path(work_dir)
+    record = json.loads((work_dir / "segment.json").read_text())
+    masks = []
+    for relative in record["files"]:
+        with Image.open(work_dir / relative) as im:
+            masks.append(np.asarray(im.convert("L")) > 127)
+    summary = {k: v for k, v in record.items()
+               if k not in ("source", "frames", "confidence", "failed", "files")}
+    return MaskSet(tuple(record["frames"]), tuple(masks), record["source"],
+                   tuple(record["confidence"]), dict(record["failed"]), summary)
