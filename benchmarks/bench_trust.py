@@ -44,7 +44,7 @@ def item_row(root, item: str, scenario, cfg: EstimateConfig, model) -> dict:
     stages = run_stages(capture, out / "work", cfg.sfm, cfg.dense, cfg.masking,
                         stale="recompute", progress=False)
     strict_cfg = replace(cfg.masking, max_outside_views=0)
-    strict = mask_cloud(stages.dense.cloud, capture, stages.sfm.T_world_from_cam,
+    strict = mask_cloud(stages.dense.cloud, capture, stages.masks, stages.sfm.T_world_from_cam,
                         stages.sfm.registered, strict_cfg)
     silhouettes = food_silhouettes(capture, stages, cfg)
     default = estimate_from_stages(capture, stages, model, cfg, silhouettes, scale)

@@ -38,6 +38,7 @@ def test_exact_depth_maps_fuse_onto_the_true_surface(quick_capture):
     from volec.dense import DenseConfig
     from volec.experiments import Scenario, _exact_depth_cloud
     from volec.metrics import sample_surface, signed_distances_to_surface
+    from volec.segment import given_masks
     from volec.synth import PRESETS, load_ground_truth_mesh
 
     capture = read_transforms_json(quick_capture / "capture")
@@ -48,7 +49,8 @@ def test_exact_depth_maps_fuse_onto_the_true_surface(quick_capture):
                           registered=np.ones(len(exact), bool),
                           points_xyz=sample_surface(truth, 2000))
     scenario = Scenario("quick", PRESETS["quick"])
-    dense = _exact_depth_cloud(capture, sfm, "apple", scenario, DenseConfig(reference_stride=1))
+    dense = _exact_depth_cloud(capture, given_masks(capture), sfm, "apple", scenario,
+                               DenseConfig(reference_stride=1))
     signed = signed_distances_to_surface(dense.cloud.xyz, truth)
     food = np.abs(signed) < 0.005  # the plate and table are in the cloud too
     assert food.sum() > 1000

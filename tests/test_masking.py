@@ -12,6 +12,7 @@ from volec.capture import Capture, Frame, Intrinsics
 from volec.geometry import look_at_opencv
 from volec.masking import MaskingConfig, MaskingError, check_masks, mask_cloud
 from volec.pointcloud import PointCloud
+from volec.segment import given_masks
 
 INTR = Intrinsics(96, 72, 90.0, 90.0, 47.5, 35.5)
 RADIUS_M = 0.03
@@ -42,6 +43,7 @@ def _sphere_capture(root: Path, n_views: int = 8) -> Capture:
 
 def test_points_inside_the_item_stay_and_the_table_goes(tmp_path):
     cap = _sphere_capture(tmp_path / "cap")
+    masks = given_masks(cap)
     rng = np.random.default_rng(0)
     inside = rng.normal(size=(300, 3))
     radii = 0.9 * RADIUS_M * rng.random(300) ** (1 / 3)
@@ -52,7 +54,7 @@ def test_points_inside_the_item_stay_and_the_table_goes(tmp_path):
     table = np.c_[radius * np.cos(angle), radius * np.sin(angle), np.full(200, -RADIUS_M)]
     cloud = PointCloud(np.vstack([inside, table]))
     poses = np.stack([f.T_world_from_cam for f in cap.frames])
-    result = mask_cloud(cloud, cap, poses, np.ones(len(cap), bool), MaskingConfig())
+    result = mask_cloud(cloud, cap, masks, poses, np.ones(len(cap), bool), MaskingConfig())
     assert len(result.cloud) == 300
     np.testing.assert_array_equal(result.cloud.xyz, inside)
     r = result.report
@@ -62,30 +64,33 @@ def test_points_inside_the_item_stay_and_the_table_goes(tmp_path):
 
 def test_the_inside_fraction_decides_points_missed_by_one_view(tmp_path):
     cap = _sphere_capture(tmp_path / "cap")
+    masks = given_masks(cap)
     poses = np.stack([f.T_world_from_cam for f in cap.frames])
     # a point straight behind the sphere from view 0, off-axis: outside some silhouettes
     point = np.array([[-1.6 * RADIUS_M, 0.0, 0.0]])
-    strict = mask_cloud(PointCloud(np.vstack([point, [[0, 0, 0]]])), cap, poses,
+    strict = mask_cloud(PointCloud(np.vstack([point, [[0, 0, 0]]])), cap, masks, poses,
                         np.ones(len(cap), bool), MaskingConfig(min_inside_fraction=1.0))
     assert len(strict.cloud) == 1  # only the centre
     from volec.masking import mask_votes
 
-    seen, inside = mask_votes(PointCloud(point), cap, poses, np.ones(len(cap), bool), 0)
+    seen, inside = mask_votes(PointCloud(point), cap, masks, poses, np.ones(len(cap), bool), 0)
     assert seen[0] == len(cap) and 0 < inside[0] < len(cap)
     fraction = inside[0] / seen[0]
-    loose = mask_cloud(PointCloud(point), cap, poses, np.ones(len(cap), bool),
+    loose = mask_cloud(PointCloud(point), cap, masks, poses, np.ones(len(cap), bool),
                        MaskingConfig(min_inside_fraction=fraction, mask_dilation_px=0))
     assert len(loose.cloud) == 1
 
 
 def test_unregistered_views_do_not_vote_and_too_few_views_remove(tmp_path):
     cap = _sphere_capture(tmp_path / "cap")
+    masks = given_masks(cap)
     poses = np.stack([f.T_world_from_cam for f in cap.frames])
     use = np.zeros(len(cap), bool)
     use[:2] = True
+    origin = PointCloud(np.zeros((1, 3)))
     with pytest.raises(MaskingError, match="no point"):
-        mask_cloud(PointCloud(np.zeros((1, 3))), cap, poses, use, MaskingConfig(min_views=3))
-    result = mask_cloud(PointCloud(np.zeros((1, 3))), cap, poses, use, MaskingConfig(min_views=2))
+        mask_cloud(origin, cap, masks, poses, use, MaskingConfig(min_views=3))
+    result = mask_cloud(origin, cap, masks, poses, use, MaskingConfig(min_views=2))
     assert result.report["views"] == 2 and len(result.cloud) == 1
 
 
@@ -94,9 +99,8 @@ def test_a_capture_without_masks_is_a_clear_error(tmp_path):
     from dataclasses import replace
 
     bare = Capture(cap.root, tuple(replace(f, mask_path=None) for f in cap.frames))
-    poses = np.stack([f.T_world_from_cam for f in cap.frames])
     with pytest.raises(MaskingError, match="no food mask"):
-        mask_cloud(PointCloud(np.zeros((1, 3))), bare, poses, np.ones(len(cap), bool))
+        given_masks(bare)
 
 
 def _edit_mask(frame: Frame, change) -> None:
@@ -126,31 +130,33 @@ def test_unusable_masks_are_named_and_take_no_part(tmp_path):
         return out
 
     _edit_mask(cap.frames[7], frame_with_a_hole)
-    bad = check_masks(cap)
+    masks = given_masks(cap)
+    bad = check_masks(masks)
     assert sorted(bad) == ["f2.png", "f5.png", "f7.png"]
     assert "empty" in bad["f2.png"] and "whole frame" in bad["f5.png"]
     assert "border" in bad["f7.png"]
     inside, table = _sphere_and_table()
     poses = np.stack([f.T_world_from_cam for f in cap.frames])
-    result = mask_cloud(PointCloud(np.vstack([inside, table])), cap, poses,
+    result = mask_cloud(PointCloud(np.vstack([inside, table])), cap, masks, poses,
                         np.ones(len(cap), bool), MaskingConfig())
     # the empty mask would have removed the whole item, the inverted one the table's absence
     np.testing.assert_array_equal(result.cloud.xyz, inside)
     assert result.report["unusable_masks"] == bad and result.report["views"] == 13
     _edit_mask(cap.frames[8], lambda m: np.zeros_like(m))
     with pytest.raises(MaskingError, match=r"4 of 16 food masks are unusable \(.*mask_2\.png"):
-        check_masks(cap)
+        check_masks(given_masks(cap))
 
 
 def test_one_frame_missing_part_of_the_food_does_not_remove_it(tmp_path):
     cap = _sphere_capture(tmp_path / "cap", n_views=10)
     # a segmenter missed the right half of the item in one frame
     _edit_mask(cap.frames[3], lambda m: m & (np.arange(m.shape[1]) < INTR.cx)[None, :])
+    masks = given_masks(cap)
     inside, table = _sphere_and_table()
     cloud = PointCloud(np.vstack([inside, table]))
     poses = np.stack([f.T_world_from_cam for f in cap.frames])
     use = np.ones(len(cap), bool)
-    tolerant = mask_cloud(cloud, cap, poses, use, MaskingConfig())
+    tolerant = mask_cloud(cloud, cap, masks, poses, use, MaskingConfig())
     np.testing.assert_array_equal(tolerant.cloud.xyz, inside)  # all food, no table
-    strict = mask_cloud(cloud, cap, poses, use, MaskingConfig(max_outside_views=0))
+    strict = mask_cloud(cloud, cap, masks, poses, use, MaskingConfig(max_outside_views=0))
     assert 0 < len(strict.cloud) < 0.8 * len(inside)  # the paper's rule loses the half

@@ -23,6 +23,7 @@ from volec.meshing import (
     silhouette_views,
 )
 from volec.pointcloud import PointCloud
+from volec.segment import given_masks
 from volec.volume import volume_ml
 
 FAST = MeshingConfig(poisson_depth=7, grid_voxel_m=0.002, thinning_voxel_m=0.0)
@@ -200,14 +201,14 @@ def test_silhouette_views_are_evenly_spaced_registered_frames(tmp_path):
     capture = read_transforms_json(out / "capture")
     poses = np.stack([f.T_world_from_cam for f in capture.frames])
     registered = np.array([True, True, False, True, True, True])
-    views = silhouette_views(capture, poses, registered, max_views=3)
+    views = silhouette_views(capture, given_masks(capture), poses, registered, max_views=3)
     assert len(views) == 3
     for view, frame in zip(views, [0, 3, 5], strict=True):
         np.testing.assert_allclose(view.T_cam_from_world @ poses[frame], np.eye(4), atol=1e-9)
         mask = read_mask(capture.frames[frame])
         assert (view.signed_distance_px[mask] <= 0).all()
         assert (view.signed_distance_px[~mask] > 0).all()
-    assert len(silhouette_views(capture, poses, registered)) == 5
+    assert len(silhouette_views(capture, given_masks(capture), poses, registered)) == 5
 
 
 def test_silhouettes_carve_the_unseen_gap_under_a_sphere_on_a_table():

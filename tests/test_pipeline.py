@@ -78,10 +78,11 @@ def test_volec_dense_end_to_end(small_capture, small_result, tmp_path, capsys):
     assert snapshot(work) == stages
 
 
-def test_volec_dense_refuses_a_capture_without_masks(tmp_path, capsys):
+def test_volec_dense_with_given_masks_refuses_a_capture_without_masks(tmp_path, capsys):
     out = write_synthetic_capture("apple", tmp_path / "apple",
                                   PRESETS["quick"].with_(n_frames=3, masks_in_capture=False),
                                   progress=False)
-    assert main(["dense", str(out / "capture"), "--out", str(tmp_path / "work")]) == 2
+    assert main(["dense", str(out / "capture"), "--out", str(tmp_path / "work"),
+                 "--masks", "given"]) == 2
     assert "no food mask" in capsys.readouterr().err
     assert not (tmp_path / "work").exists()

@@ -15,6 +15,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
+
 from volec import __version__
 from volec.errors import VolecError
 
@@ -108,18 +110,17 @@ def _cmd_dense(args: argparse.Namespace) -> int:
     from volec.dense import PRESETS as DENSE_PRESETS
     from volec.io import folder_lock
     from volec.masking import PRESETS as MASK_PRESETS
-    from volec.masking import require_masks
-    from volec.pipeline import check_output_folder, run_stages
+    from volec.pipeline import check_output_folder, masks_source, run_stages
     from volec.sfm import PRESETS as SFM_PRESETS
 
     work = Path(args.out)
     capture, _ = _open_capture(args)
     check_output_folder(capture, work)
-    require_masks(capture)
+    masks_source(capture, args.masks)  # given masks that are missing: refused before any work
     with folder_lock(work):
         stages = run_stages(capture, work, SFM_PRESETS[args.sfm_preset], DENSE_PRESETS[args.preset],
                             MASK_PRESETS[args.mask_preset], overwrite=args.overwrite,
-                            progress=not args.quiet)
+                            progress=not args.quiet, masks=args.masks)
     sfm, dense, masked = stages.sfm, stages.dense, stages.masked
     d, m = dense.summary, masked.report
     print(f"SfM: {sfm.summary['registered']}/{sfm.summary['frames']} frames registered")
@@ -160,6 +161,26 @@ def _cmd_complete(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_segment(args: argparse.Namespace) -> int:
+    from volec.io import folder_lock
+    from volec.pipeline import check_output_folder, run_segment_stage, run_sfm_stage
+
+    work = Path(args.out)
+    capture, _ = _open_capture(args)
+    check_output_folder(capture, work)
+    with folder_lock(work):
+        sfm, redone = run_sfm_stage(capture, work, overwrite=args.overwrite)
+        masks, computed = run_segment_stage(capture, sfm, work, overwrite=args.overwrite or redone,
+                                            progress=not args.quiet)
+    if not computed:
+        print(f"{work}/segment.json is already finished (pass --overwrite to redo it)")
+    print(f"{len(masks)} food masks -> {work}/masks/ (median confidence "
+          f"{np.median(masks.confidence):.3f}); record: {work}/segment.json")
+    for name, why in masks.failed.items():
+        print(f"warning: {name}: {why}")
+    return 0
+
+
 EXIT_UNTRUSTED = 3
 """``volec estimate --strict``: the estimate was made but is not trusted."""
 
@@ -175,6 +196,7 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
                   checkpoint=args.checkpoint or "")
     if args.mask_preset is not None:
         cfg = replace(cfg, masking=MASK_PRESETS[args.mask_preset])
+    cfg = replace(cfg, masks=args.masks)
     result = run_estimate(capture, Path(args.out), cfg, overwrite=args.overwrite,
                           progress=not args.quiet, scale=scale)
     trust = "trusted" if result["trusted"] else "NOT TRUSTED"
@@ -257,12 +279,15 @@ def build_parser() -> argparse.ArgumentParser:
         "WORKDIR/food_masked.ply (metres, the capture's world frame) with dense.json and "
         "masking.json; the capture is only read.",
     )
-    dense.add_argument("capture", help="capture folder (transforms.json with mask_path)")
+    dense.add_argument("capture", help="capture folder (transforms.json, masks optional)")
     dense.add_argument("--out", required=True, type=Path, help="work folder")
     dense.add_argument("--preset", default="default", choices=["default", "fast", "full_image"],
                        help="dense stereo preset")
     dense.add_argument("--mask-preset", default="default", choices=["default", "tolerant"],
                        help="masking preset (tolerant: 90%% of views, masks grown 3 px)")
+    dense.add_argument("--masks", default="default", choices=["default", "given", "auto"],
+                       help="the capture's food masks (given), automatic ones (auto), or the "
+                       "capture's when every frame has one (default)")
     dense.add_argument("--sfm-preset", default="default",
                        choices=["default", "exhaustive", "colmap_sift"])
     _add_capture_options(dense)
@@ -270,6 +295,21 @@ def build_parser() -> argparse.ArgumentParser:
                        help="redo every stage, replacing earlier results in WORKDIR")
     dense.add_argument("--quiet", action="store_true", help="no progress bars")
     dense.set_defaults(func=_cmd_dense)
+
+    seg = sub.add_parser(
+        "segment",
+        help="automatic food masks for every frame (runs or reuses SfM first)",
+        description="Find the food without any learned model: the support plane and the item "
+        "standing on it from the SfM points, colour graph cuts seeded from them on a few "
+        "views, their visual hull, and every frame's silhouette refined at its border. "
+        "Writes WORKDIR/masks/*.png and WORKDIR/segment.json; the capture is only read.",
+    )
+    seg.add_argument("capture", help="capture folder (transforms.json, or a COLMAP project)")
+    seg.add_argument("--out", required=True, type=Path, help="work folder")
+    seg.add_argument("--overwrite", action="store_true", help="redo a finished SfM stage")
+    seg.add_argument("--quiet", action="store_true", help="no progress bars")
+    _add_capture_options(seg)
+    seg.set_defaults(func=_cmd_segment)
 
     complete = sub.add_parser(
         "complete",
@@ -294,7 +334,7 @@ def build_parser() -> argparse.ArgumentParser:
         "(volume_ml, warnings, stage times), mesh.ply, mesh.glb, the clouds of each stage "
         "and report.md; the capture is only read.",
     )
-    estimate.add_argument("capture", help="capture folder (transforms.json with mask_path)")
+    estimate.add_argument("capture", help="capture folder (transforms.json, masks optional)")
     estimate.add_argument("--out", required=True, type=Path, help="output folder")
     estimate.add_argument("--no-completion", action="store_true",
                           help="mesh the masked cloud as it is (the VolE-style baseline)")
@@ -306,6 +346,10 @@ def build_parser() -> argparse.ArgumentParser:
     estimate.add_argument("--mask-preset", choices=["default", "tolerant"],
                           help="masking preset (tolerant: for imperfect masks, 90%% of views, "
                           "masks grown 3 px)")
+    estimate.add_argument("--masks", default="default", choices=["default", "given", "auto"],
+                          help="the capture's food masks (given), automatic ones (auto), or "
+                          "the capture's when every frame has one and automatic otherwise "
+                          "(default)")
     estimate.add_argument("--strict", action="store_true",
                           help=f"exit with status {EXIT_UNTRUSTED} when the estimate is not "
                           "trusted (result.json says why)")

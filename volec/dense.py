@@ -40,7 +40,7 @@ import numpy as np
 from PIL import Image
 from scipy import ndimage
 
-from volec.capture import Capture, Frame, Intrinsics, read_mask
+from volec.capture import Capture, Frame, Intrinsics
 from volec.errors import ConfigError, VolecError
 from volec.geometry import invert_rigid
 from volec.pointcloud import (
@@ -50,6 +50,7 @@ from volec.pointcloud import (
     to_open3d,
     write_cloud_record,
 )
+from volec.segment import MaskSet
 
 log = logging.getLogger(__name__)
 
@@ -197,8 +198,9 @@ def working_size(intr: Intrinsics, max_image_size_px: int) -> tuple[int, int, fl
 
 
 def prepare_view(index: int, frame: Frame, T_world_from_cam: np.ndarray,
-                 cfg: DenseConfig, use_mask: bool) -> View:
-    """Load, undistort and downscale one frame; its ROI from its mask (or the whole image)."""
+                 cfg: DenseConfig, mask: np.ndarray | None) -> View:
+    """Load, undistort and downscale one frame; its ROI from its food ``mask`` (or the whole
+    image when None)."""
     intr = frame.intrinsics
     with Image.open(frame.image_path) as im:
         rgb = np.asarray(im.convert("RGB"))
@@ -206,8 +208,8 @@ def prepare_view(index: int, frame: Frame, T_world_from_cam: np.ndarray,
     w, h, factor = working_size(intr, cfg.max_image_size_px)
     if factor < 1.0:
         rgb = np.asarray(Image.fromarray(rgb).resize((w, h), Image.Resampling.BOX))
-    if use_mask:
-        mask = _undistort(read_mask(frame).astype(np.uint8), intr, nearest=True)
+    if mask is not None:
+        mask = _undistort(mask.astype(np.uint8), intr, nearest=True)
         mask = np.asarray(Image.fromarray(mask * 255).resize((w, h), Image.Resampling.BOX)) > 0
         roi = ndimage.binary_dilation(mask, iterations=cfg.roi_margin_px) if mask.any() else mask
     else:
@@ -569,23 +571,26 @@ class DensePlan:
     """Whether the work is limited to the food masks' surroundings."""
 
 
-def plan_dense(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarray,
-               sparse_xyz: np.ndarray, cfg: DenseConfig, progress: bool = False) -> DensePlan:
+def plan_dense(capture: Capture, masks: MaskSet | None, T_world_from_cam: np.ndarray,
+               registered: np.ndarray, sparse_xyz: np.ndarray, cfg: DenseConfig,
+               progress: bool = False) -> DensePlan:
     """Load the registered frames (``T_world_from_cam`` (N, 4, 4) per capture frame) and
-    choose the reference views, their sources and their consistency checks."""
+    choose the reference views, their sources and their consistency checks; ``masks`` bound
+    the work (``roi="mask"``)."""
     from tqdm.auto import tqdm
 
     if cfg.ncc_window_px % 2 == 0 or cfg.ncc_window_px < 3:
         raise ConfigError("ncc_window_px must be odd and at least 3")
     if len(T_world_from_cam) != len(capture) or len(registered) != len(capture):
         raise ValueError("one pose and one registered flag per capture frame are needed")
-    use_mask = cfg.roi == "mask" and capture.has_masks
-    if cfg.roi == "mask" and not capture.has_masks:
-        log.warning("the capture has no masks: dense stereo runs on the whole image (slower)")
+    use_mask = cfg.roi == "mask" and masks is not None
+    if cfg.roi == "mask" and masks is None:
+        log.warning("no food masks: dense stereo runs on the whole image (slower)")
     indices = np.flatnonzero(registered)
     if len(indices) < 3:
         raise DenseError(f"only {len(indices)} frames registered; dense stereo needs 3 or more")
-    views = [prepare_view(int(i), capture.frames[i], T_world_from_cam[i], cfg, use_mask)
+    views = [prepare_view(int(i), capture.frames[i], T_world_from_cam[i], cfg,
+                          masks.mask(int(i)) if use_mask else None)
              for i in tqdm(indices, desc="dense: loading frames", disable=not progress)]
     centres = np.stack([v.centre for v in views])
     targets = _object_targets(views, sparse_xyz)
@@ -650,8 +655,8 @@ def fuse_depth_maps(plan: DensePlan, maps: dict[int, DepthMap], cfg: DenseConfig
     return voxel_merge(fused, cfg.fusion_voxel_m), n_estimated, len(fused)
 
 
-def run_dense(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarray,
-              sparse_xyz: np.ndarray, cfg: DenseConfig | None = None,
+def run_dense(capture: Capture, masks: MaskSet | None, T_world_from_cam: np.ndarray,
+              registered: np.ndarray, sparse_xyz: np.ndarray, cfg: DenseConfig | None = None,
               progress: bool = True) -> DenseResult:
     """Depth maps of every registered frame, filtered and fused into the scene cloud.
 
@@ -661,7 +666,7 @@ def run_dense(capture: Capture, T_world_from_cam: np.ndarray, registered: np.nda
     cfg = cfg or DenseConfig()
     timings: dict[str, float] = {}
     t = time.perf_counter()
-    plan = plan_dense(capture, T_world_from_cam, registered, sparse_xyz, cfg, progress)
+    plan = plan_dense(capture, masks, T_world_from_cam, registered, sparse_xyz, cfg, progress)
     timings["load_s"] = time.perf_counter() - t
     t = time.perf_counter()
     maps, ranges = depth_maps(plan, sparse_xyz, cfg, progress)

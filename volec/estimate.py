@@ -41,7 +41,7 @@ from volec.errors import VolecError
 from volec.geometry import horizontal_axes
 from volec.io import folder_lock, write_bytes_atomic, write_json_atomic, write_text_atomic
 from volec.masking import PRESETS as MASKING_PRESETS
-from volec.masking import MaskingConfig, check_masks, require_masks, usable_masks
+from volec.masking import MaskingConfig, check_masks, usable_masks
 from volec.meshing import PRESETS as MESHING_PRESETS
 from volec.meshing import (
     MeshingConfig,
@@ -56,8 +56,10 @@ from volec.meshing import (
     with_normals,
 )
 from volec.pipeline import (
+    MaskSource,
     StageResults,
     check_output_folder,
+    masks_source,
     preflight,
     read_record,
     run_stages,
@@ -67,6 +69,7 @@ from volec.pipeline import (
 from volec.pointcloud import PointCloud, write_ply
 from volec.provenance import capture_identity, file_digest, json_data, stage_provenance
 from volec.scale import ScaleCheck, ScaleConfig, require_metric
+from volec.segment import SegmentConfig, given_masks
 from volec.sfm import SfmConfig
 from volec.trust import Reason, TrustConfig, TrustFacts, assess
 from volec.volume import volume_ml
@@ -86,6 +89,10 @@ class EstimateConfig:
     checkpoint: str = ""
     """Completion checkpoint; empty: the one shipped with volec."""
     sfm: SfmConfig = field(default_factory=SfmConfig)
+    masks: MaskSource = "default"
+    """The capture's own food masks (``given``), automatic ones (``auto``, :mod:`volec.segment`),
+    or the capture's where every frame has one and automatic ones otherwise (``default``)."""
+    segment: SegmentConfig = field(default_factory=SegmentConfig)
     dense: DenseConfig = field(default_factory=DenseConfig)
     masking: MaskingConfig = field(default_factory=MaskingConfig)
     completion: CompletionConfig = field(
@@ -220,8 +227,9 @@ def food_silhouettes(capture: Capture, stages: StageResults, cfg: EstimateConfig
     carving; None when ``cfg`` turns carving off."""
     if not cfg.carve_silhouettes:
         return None
-    use = stages.sfm.registered & usable_masks(capture, stages.masked.report["unusable_masks"])
-    return silhouette_views(capture, stages.sfm.T_world_from_cam, use,
+    use = stages.sfm.registered & usable_masks(stages.masks,
+                                               stages.masked.report["unusable_masks"])
+    return silhouette_views(capture, stages.masks, stages.sfm.T_world_from_cam, use,
                             cfg.meshing.silhouette_max_views)
 
 
@@ -357,8 +365,11 @@ def estimate_record(capture: Capture, stages: StageResults, est: Estimate, cfg: 
         "frames": {"total": len(capture), "registered": int(stages.sfm.registered.sum())},
         "orbit_coverage_deg": round(est.orbit_coverage_deg, 1),
         "scale": scale.record(),
-        "masks": {"source": "given",
-                  "unusable": stages.masked.report.get("unusable_masks", {})},
+        "masks": {"source": stages.masks.source,
+                  "unusable": stages.masked.report.get("unusable_masks", {}),
+                  "segmentation_listed": stages.masks.failed,
+                  "confidence_median": float(np.median(stages.masks.confidence))
+                  if stages.masks.confidence else None},
         "stage_seconds": seconds,
         "stages_reused": list(stages.reused),
         "support_plane": None if food.support is None else food.support.record(),
@@ -425,8 +436,8 @@ def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = N
     out_dir = Path(out_dir)
     check_output_folder(capture, out_dir)
     scale = scale or require_metric(capture, cfg.scale)
-    require_masks(capture)
-    check_masks(capture, cfg.masking.checks)
+    if masks_source(capture, cfg.masks) == "given":  # checked before any work
+        check_masks(given_masks(capture), cfg.masking.checks)
     model = load_completion_model(cfg) if cfg.use_completion else None
     identity = capture_identity(capture)
     with folder_lock(out_dir):
@@ -434,7 +445,8 @@ def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = N
                   "refuse")
         start = time.perf_counter()
         stages = run_stages(capture, out_dir, cfg.sfm, cfg.dense, cfg.masking, overwrite,
-                            progress=progress, identity=identity)
+                            progress=progress, identity=identity, masks=cfg.masks,
+                            segment_cfg=cfg.segment)
         wanted = result_provenance(identity, cfg, stages)
         finished = None if overwrite else _finished_result(out_dir, wanted)
         if finished is not None:

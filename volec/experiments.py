@@ -41,6 +41,7 @@ from volec.metrics import (
 )
 from volec.pipeline import config_record, run_sfm_stage, run_stages
 from volec.provenance import code_identity, file_digest, module_digest
+from volec.segment import given_masks
 from volec.sfm import SfmConfig, evaluate_sfm
 from volec.synth import PRESETS as SYNTH_PRESETS
 from volec.synth import SynthConfig, load_ground_truth_mesh, write_synthetic_capture
@@ -226,9 +227,10 @@ def dense_experiment(
                 sfm, _ = run_sfm_stage(capture, out / "work", sfm_cfg, stale="recompute")
                 T = np.stack([f.T_world_from_cam for f in exact.frames])
                 registered = np.ones(len(capture), bool)
-                dense = run_dense(capture, T, registered, sfm.points_xyz, dense_cfg,
+                masks = given_masks(capture)
+                dense = run_dense(capture, masks, T, registered, sfm.points_xyz, dense_cfg,
                                   progress=False)
-                masked = mask_cloud(dense.cloud, capture, T, registered, mask_cfg)
+                masked = mask_cloud(dense.cloud, capture, masks, T, registered, mask_cfg)
                 save_dense(work, dense)
                 save_masking(work, masked)
             scores = cloud_scores(masked.cloud.xyz, load_ground_truth_mesh(out), exact)
@@ -581,14 +583,14 @@ def _with_exact_poses(stages: Any, exact: Any) -> Any:
     return replace(stages, sfm=sfm)
 
 
-def _exact_depth_cloud(capture: Any, sfm: Any, item: str, scenario: Scenario,
+def _exact_depth_cloud(capture: Any, masks: Any, sfm: Any, item: str, scenario: Scenario,
                        cfg: DenseConfig) -> Any:
     """The scene cloud that the dense stage's fusion makes from the renderer's exact depth
     maps (at the working resolution, inside the same regions of interest)."""
     from volec.dense import DenseResult, DepthMap, fuse_depth_maps, plan_dense
     from volec.synth.generate import ExactDepth
 
-    plan = plan_dense(capture, sfm.T_world_from_cam, sfm.registered, sfm.points_xyz, cfg)
+    plan = plan_dense(capture, masks, sfm.T_world_from_cam, sfm.registered, sfm.points_xyz, cfg)
     exact_depth = ExactDepth(item, scenario.synth)
     maps = {}
     for r in plan.references:
@@ -623,13 +625,16 @@ def attribution_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConf
         sfm = exact_stages.sfm
         full_res = replace(cfg.dense, max_image_size_px=max(capture.frames[0].intrinsics.width,
                                                             capture.frames[0].intrinsics.height))
+        masks = stages.masks
         scenes = {
-            "exact_poses": lambda: run_dense(capture, sfm.T_world_from_cam, sfm.registered,
-                                             sfm.points_xyz, cfg.dense, progress=False),
-            "exact_poses_full_res": lambda: run_dense(capture, sfm.T_world_from_cam,
+            "exact_poses": lambda: run_dense(capture, masks, sfm.T_world_from_cam,
+                                             sfm.registered, sfm.points_xyz, cfg.dense,
+                                             progress=False),
+            "exact_poses_full_res": lambda: run_dense(capture, masks, sfm.T_world_from_cam,
                                                       sfm.registered, sfm.points_xyz, full_res,
                                                       progress=False),
-            "exact_depth": lambda: _exact_depth_cloud(capture, sfm, item, scenario, cfg.dense),
+            "exact_depth": lambda: _exact_depth_cloud(capture, masks, sfm, item, scenario,
+                                                      cfg.dense),
         }
         row: dict[str, Any] = {"item": item, "gt_ml": float(truth.volume * 1e6)}
         for variant in ATTRIBUTION_VARIANTS:
@@ -637,8 +642,8 @@ def attribution_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConf
                 these = stages
             else:
                 dense = scenes[variant]()
-                masked = mask_cloud(dense.cloud, capture, sfm.T_world_from_cam, sfm.registered,
-                                    cfg.masking)
+                masked = mask_cloud(dense.cloud, capture, masks, sfm.T_world_from_cam,
+                                    sfm.registered, cfg.masking)
                 these = replace(exact_stages, dense=dense, masked=masked)
             est = estimate_from_stages(capture, these, model, cfg,
                                        food_silhouettes(capture, these, cfg))

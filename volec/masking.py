@@ -1,7 +1,8 @@
 """Point cloud masking: keep the scene points that are food.
 
 In: a scene :class:`~volec.pointcloud.PointCloud` (metres, world frame), the capture (each
-frame's intrinsics and food mask), the camera poses to project with (SfM's refined ones) and a
+frame's intrinsics), its food masks (a :class:`~volec.segment.MaskSet`: given or automatic),
+the camera poses to project with (SfM's refined ones) and a
 :class:`MaskingConfig`. Out: a :class:`MaskingResult`, the food cloud plus a report of how many
 points each rule removed. :func:`save_masking` writes ``WORKDIR/food_masked.ply`` and
 ``WORKDIR/masking.json``.
@@ -26,9 +27,10 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
-from volec.capture import Capture, read_mask
+from volec.capture import Capture
 from volec.errors import ConfigError, VolecError
 from volec.pointcloud import PointCloud, read_cloud_record, write_cloud_record
+from volec.segment import MaskSet
 
 log = logging.getLogger(__name__)
 
@@ -105,31 +107,25 @@ def mask_problem(mask: np.ndarray, cfg: MaskCheckConfig) -> str | None:
     return None
 
 
-def check_masks(capture: Capture, cfg: MaskCheckConfig | None = None) -> dict[str, str]:
+def check_masks(masks: MaskSet, cfg: MaskCheckConfig | None = None) -> dict[str, str]:
     """The frames whose mask is unusable (:func:`mask_problem`), by name, with why. Raises
-    :class:`MaskingError` naming them when more than ``max_bad_fraction`` of the frames are."""
+    :class:`MaskingError` naming them (their files, for given masks) when more than
+    ``max_bad_fraction`` of the frames are."""
     cfg = cfg or MaskCheckConfig()
-    require_masks(capture)
     bad = {}
-    for frame in capture.frames:
-        problem = mask_problem(read_mask(frame), cfg)
+    for name, mask in zip(masks.names, masks.masks, strict=True):
+        problem = mask_problem(mask, cfg)
         if problem is not None:
-            bad[frame.name] = problem
-    if len(bad) > cfg.max_bad_fraction * len(capture):
-        listing = "; ".join(f"{frame_mask(capture, n)}: {why}" for n, why in list(bad.items())[:5])
+            bad[name] = problem
+    if len(bad) > cfg.max_bad_fraction * len(masks):
+        listing = "; ".join(f"{masks.describe(n)}: {why}" for n, why in list(bad.items())[:5])
         raise MaskingError(
-            f"{len(bad)} of {len(capture)} food masks are unusable ({listing}"
+            f"{len(bad)} of {len(masks)} food masks are unusable ({listing}"
             f"{'; ...' if len(bad) > 5 else ''}); fix or regenerate the masks"
         )
     for name, why in bad.items():
         log.warning("mask of %s is unusable and not used: %s", name, why)
     return bad
-
-
-def frame_mask(capture: Capture, name: str) -> str:
-    """The mask file of the frame called ``name``, for messages."""
-    frame = next(f for f in capture.frames if f.name == name)
-    return str(frame.mask_path)
 
 
 @dataclass(eq=False)
@@ -143,15 +139,16 @@ class MaskingResult:
     ``kept``; the config; per-view inside fractions."""
 
 
-def mask_votes(cloud: PointCloud, capture: Capture, T_world_from_cam: np.ndarray,
-               use: np.ndarray, dilation_px: int) -> tuple[np.ndarray, np.ndarray]:
+def mask_votes(cloud: PointCloud, capture: Capture, masks: MaskSet,
+               T_world_from_cam: np.ndarray, use: np.ndarray, dilation_px: int
+               ) -> tuple[np.ndarray, np.ndarray]:
     """Per point, the number of used views whose image it falls in, and of those the number
     whose (dilated) food mask it falls in."""
     seen = np.zeros(len(cloud), int)
     inside = np.zeros(len(cloud), int)
     for i in np.flatnonzero(use):
         frame = capture.frames[i]
-        mask = read_mask(frame)
+        mask = masks.mask(i)
         if dilation_px > 0:
             mask = ndimage.binary_dilation(mask, iterations=dilation_px)
         T_cam_from_world = np.linalg.inv(T_world_from_cam[i])
@@ -182,9 +179,9 @@ def decision_positions(xyz: np.ndarray, neighbours: int, radius_m: float) -> np.
     return np.where((near.sum(axis=1) >= 4)[:, None], mean, xyz)
 
 
-def usable_masks(capture: Capture, bad: dict[str, str]) -> np.ndarray:
+def usable_masks(masks: MaskSet, bad: dict[str, str]) -> np.ndarray:
     """(N,) True for the frames whose mask is not among the ``bad`` ones."""
-    return np.array([f.name not in bad for f in capture.frames], bool)
+    return np.array([name not in bad for name in masks.names], bool)
 
 
 def require_masks(capture: Capture) -> None:
@@ -197,17 +194,18 @@ def require_masks(capture: Capture) -> None:
         )
 
 
-def mask_cloud(cloud: PointCloud, capture: Capture, T_world_from_cam: np.ndarray,
-               registered: np.ndarray, cfg: MaskingConfig | None = None) -> MaskingResult:
+def mask_cloud(cloud: PointCloud, capture: Capture, masks: MaskSet,
+               T_world_from_cam: np.ndarray, registered: np.ndarray,
+               cfg: MaskingConfig | None = None) -> MaskingResult:
     """Keep the points of ``cloud`` that the food masks of the registered frames agree on."""
     cfg = cfg or MaskingConfig()
     if not 0.0 < cfg.min_inside_fraction <= 1.0:
         raise ConfigError("min_inside_fraction must be in (0, 1]")
     start = time.perf_counter()
-    bad = check_masks(capture, cfg.checks)
-    use = np.asarray(registered, bool) & usable_masks(capture, bad)
+    bad = check_masks(masks, cfg.checks)
+    use = np.asarray(registered, bool) & usable_masks(masks, bad)
     judged = decision_positions(cloud.xyz, cfg.decision_neighbours, cfg.decision_radius_m)
-    seen, inside = mask_votes(PointCloud(judged), capture, T_world_from_cam, use,
+    seen, inside = mask_votes(PointCloud(judged), capture, masks, T_world_from_cam, use,
                               cfg.mask_dilation_px)
     enough_views = seen >= cfg.min_views
     # The small tolerance keeps 1.0 an exact "every view" without float trouble.

@@ -39,9 +39,10 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from volec.capture import Capture, Intrinsics, read_mask
+from volec.capture import Capture, Intrinsics
 from volec.errors import VolecError
 from volec.pointcloud import PointCloud
+from volec.segment import MaskSet
 
 
 class MeshingError(VolecError):
@@ -167,14 +168,14 @@ def silhouette_view(mask: np.ndarray, intrinsics: Intrinsics, T_world_from_cam: 
                           signed.astype(np.float32))
 
 
-def silhouette_views(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarray,
-                     max_views: int = 0) -> list[SilhouetteView]:
-    """The silhouettes of the registered frames of ``capture`` (refined poses, metres); at
-    most ``max_views`` of them, evenly spaced through the capture (0: all)."""
+def silhouette_views(capture: Capture, masks: MaskSet, T_world_from_cam: np.ndarray,
+                     registered: np.ndarray, max_views: int = 0) -> list[SilhouetteView]:
+    """The silhouettes (``masks``) of the registered frames of ``capture`` (refined poses,
+    metres); at most ``max_views`` of them, evenly spaced through the capture (0: all)."""
     chosen = np.flatnonzero(np.asarray(registered, bool))
     if 0 < max_views < len(chosen):
         chosen = chosen[np.round(np.linspace(0, len(chosen) - 1, max_views)).astype(int)]
-    return [silhouette_view(read_mask(capture.frames[i]), capture.frames[i].intrinsics,
+    return [silhouette_view(masks.mask(int(i)), capture.frames[i].intrinsics,
                             T_world_from_cam[i])
             for i in chosen]
 

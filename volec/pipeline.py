@@ -1,7 +1,8 @@
 """Running the stages in a work folder, reusing the finished ones, and only those.
 
 In: a :class:`~volec.capture.Capture`, a work folder and each stage's config. Out:
-:class:`StageResults` (SfM, dense and masking results), each loaded from the work folder when
+:class:`StageResults` (SfM, the food masks, dense and masking results), each loaded from the
+work folder when
 a finished stage there was made from exactly this (:mod:`volec.provenance`: the same capture,
 the same upstream results, config and code, and its files unchanged), computed and saved
 otherwise (files first, record last).
@@ -18,7 +19,7 @@ import json
 import logging
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -41,6 +42,14 @@ from volec.provenance import (
     record_digest,
     stage_provenance,
 )
+from volec.segment import (
+    MaskSet,
+    SegmentConfig,
+    given_masks,
+    load_masks,
+    save_masks,
+    segment,
+)
 from volec.sfm import SfmConfig, SfmResult, load_sfm, run_sfm
 
 log = logging.getLogger(__name__)
@@ -62,6 +71,7 @@ class Stage:
 
 STAGES = {
     "sfm": Stage("sfm", "sfm/summary.json", ("volec.sfm",)),
+    "segment": Stage("segment", "segment.json", ("volec.segment",)),
     "dense": Stage("dense", "dense.json", ("volec.dense",)),
     "masking": Stage("masking", "masking.json", ("volec.masking",)),
 }
@@ -155,11 +165,27 @@ def say(progress: bool, message: str) -> None:
         print(f"volec: {message}", file=sys.stderr, flush=True)
 
 
+MaskSource = Literal["default", "given", "auto"]
+"""Which food masks the stages use: the capture's own (``given``), :mod:`volec.segment`'s
+(``auto``), or the capture's when every frame has one and automatic ones otherwise
+(``default``)."""
+
+
+def masks_source(capture: Capture, wanted: MaskSource) -> str:
+    """``given`` or ``auto``: what ``wanted`` means for ``capture``."""
+    if wanted == "default":
+        return "given" if capture.has_masks else "auto"
+    if wanted == "given":
+        require_masks(capture)
+    return wanted
+
+
 @dataclass(frozen=True, eq=False)
 class StageResults:
     """The results of the stages before meshing, and how they were obtained."""
 
     sfm: SfmResult
+    masks: MaskSet
     dense: DenseResult
     masked: MaskingResult
     identity: dict[str, Any]
@@ -167,36 +193,88 @@ class StageResults:
     reused: tuple[str, ...]
     """The stages loaded from the work folder instead of computed."""
     seconds: dict[str, float] = field(default_factory=dict)
-    """Wall time of each stage in this run (``sfm_s``, ``dense_s``, ``masking_s``)."""
+    """Wall time of each stage in this run (``sfm_s``, ``segment_s``, ``dense_s``,
+    ``masking_s``)."""
 
     def digests(self) -> dict[str, str]:
         """The digest of each stage's record, as downstream records name them."""
-        return {"sfm": record_digest(self.sfm.summary), "dense": record_digest(self.dense.summary),
+        return {"sfm": record_digest(self.sfm.summary), "masks": masks_digest(self.masks),
+                "dense": record_digest(self.dense.summary),
                 "masking": record_digest(self.masked.report)}
 
 
-def wanted_provenance(identity: dict[str, Any], sfm_cfg: SfmConfig, dense_cfg: DenseConfig,
-                      mask_cfg: MaskingConfig) -> dict[str, dict[str, Any]]:
+def masks_digest(masks: MaskSet) -> str:
+    """How downstream records name the masks: ``given`` (the capture's identity holds their
+    digests) or the digest of the segmentation's record."""
+    if masks.source == "given":
+        return "given"
+    return record_digest(masks.summary["record"])
+
+
+def wanted_provenance(identity: dict[str, Any], sfm_cfg: SfmConfig, segment_cfg: SegmentConfig,
+                      dense_cfg: DenseConfig, mask_cfg: MaskingConfig
+                      ) -> dict[str, dict[str, Any]]:
     """The provenance of each stage of a run on the capture with ``identity`` (upstream
     digests left empty: they are known only once the earlier stage is done)."""
     return {"sfm": stage_provenance(identity, sfm_cfg, {}, STAGES["sfm"].modules),
+            "segment": stage_provenance(identity, segment_cfg, {}, STAGES["segment"].modules),
             "dense": stage_provenance(identity, dense_cfg, {}, STAGES["dense"].modules),
             "masking": stage_provenance(identity, mask_cfg, {}, STAGES["masking"].modules)}
+
+
+def run_segment_stage(capture: Capture, sfm: SfmResult, work_dir: Path,
+                      cfg: SegmentConfig | None = None, overwrite: bool = False,
+                      stale: Stale = "refuse", progress: bool = True) -> tuple[MaskSet, bool]:
+    """(automatic food masks, whether they were computed now) for ``work_dir/segment.json``,
+    reused when made from exactly this capture, SfM result, config and code."""
+    cfg = cfg or SegmentConfig()
+    wanted = stage_provenance(capture_identity(capture), cfg, {}, STAGES["segment"].modules)
+    preflight(work_dir, {"segment": wanted}, overwrite, stale)
+    masks, reused = _masks_stage(capture, sfm, Path(work_dir), "auto", cfg, wanted, True,
+                                 overwrite, stale, progress)
+    return masks, not reused
+
+
+def _masks_stage(capture: Capture, sfm: SfmResult, work_dir: Path, source: str,
+                 cfg: SegmentConfig, wanted: dict[str, Any], reuse: bool, overwrite: bool,
+                 stale: Stale, progress: bool) -> tuple[MaskSet, bool]:
+    """(the food masks, whether they were reused): the capture's, or the segmentation's,
+    reused from ``work_dir`` when made from exactly this SfM result."""
+    if source == "given":
+        return given_masks(capture), True
+    wanted = {**wanted, "upstream": {"sfm": record_digest(sfm.summary)}}
+    path = work_dir / STAGES["segment"].record
+    if reuse and _reusable(path, wanted, overwrite, stale):
+        masks = load_masks(work_dir)
+        return _with_record(masks, read_record(path)), True
+    masks = segment(capture, sfm.T_world_from_cam, sfm.registered, sfm.points_xyz, cfg,
+                    progress=progress)
+    masks.summary["provenance"] = wanted
+    save_masks(work_dir, masks)
+    return _with_record(masks, read_record(path)), False
+
+
+def _with_record(masks: MaskSet, record: dict[str, Any]) -> MaskSet:
+    """``masks`` with the record its stage wrote in its summary (the digest downstream)."""
+    return replace(masks, summary={**masks.summary, "record": record})
 
 
 def run_stages(capture: Capture, work_dir: Path, sfm_cfg: SfmConfig | None = None,
                dense_cfg: DenseConfig | None = None, mask_cfg: MaskingConfig | None = None,
                overwrite: bool = False, stale: Stale = "refuse", progress: bool = True,
-               identity: dict[str, Any] | None = None) -> StageResults:
-    """SfM, dense stereo and masking of ``capture`` in ``work_dir``, each reused when finished
-    from exactly these inputs (see the module docstring). A capture without a mask for every
-    frame, or a work folder of another capture, is refused before any work is done."""
+               identity: dict[str, Any] | None = None, masks: MaskSource = "default",
+               segment_cfg: SegmentConfig | None = None) -> StageResults:
+    """SfM, the food masks (given or automatic), dense stereo and masking of ``capture`` in
+    ``work_dir``, each reused when finished from exactly these inputs (see the module
+    docstring). A work folder of another capture is refused before any work is done."""
     sfm_cfg, dense_cfg = sfm_cfg or SfmConfig(), dense_cfg or DenseConfig()
-    mask_cfg = mask_cfg or MaskingConfig()
-    require_masks(capture)
+    mask_cfg, segment_cfg = mask_cfg or MaskingConfig(), segment_cfg or SegmentConfig()
+    source = masks_source(capture, masks)
     work_dir = Path(work_dir)
     identity = identity or capture_identity(capture)
-    wanted = wanted_provenance(identity, sfm_cfg, dense_cfg, mask_cfg)
+    wanted = wanted_provenance(identity, sfm_cfg, segment_cfg, dense_cfg, mask_cfg)
+    if source == "given":
+        wanted.pop("segment")
     preflight(work_dir, wanted, overwrite, stale)
     seconds: dict[str, float] = {}
     reused: list[str] = []
@@ -210,32 +288,43 @@ def run_stages(capture: Capture, work_dir: Path, sfm_cfg: SfmConfig | None = Non
         sfm = run_sfm(capture, work_dir, sfm_cfg, provenance=wanted["sfm"])
     seconds["sfm_s"] = round(time.perf_counter() - t, 2)
 
+    say(progress, "the capture's food masks" if source == "given" else "food segmentation")
+    t = time.perf_counter()
+    food_masks, was_reused = _masks_stage(capture, sfm, work_dir, source, segment_cfg,
+                                          wanted.get("segment", {}), "sfm" in reused,
+                                          overwrite, stale, progress)
+    if was_reused and "sfm" in reused:
+        reused.append("masks")
+    seconds["segment_s"] = round(time.perf_counter() - t, 2)
+    upstream = {"sfm": record_digest(sfm.summary), "masks": masks_digest(food_masks)}
+
     say(progress, "dense stereo")
     t = time.perf_counter()
-    dense_wanted = {**wanted["dense"], "upstream": {"sfm": record_digest(sfm.summary)}}
-    if "sfm" in reused and _reusable(work_dir / "dense.json", dense_wanted, overwrite, stale):
+    dense_wanted = {**wanted["dense"], "upstream": upstream}
+    if "masks" in reused and _reusable(work_dir / "dense.json", dense_wanted, overwrite, stale):
         dense = load_dense(work_dir)
         reused.append("dense")
     else:
-        dense = run_dense(capture, sfm.T_world_from_cam, sfm.registered, sfm.points_xyz,
-                          dense_cfg, progress=progress)
+        dense = run_dense(capture, food_masks, sfm.T_world_from_cam, sfm.registered,
+                          sfm.points_xyz, dense_cfg, progress=progress)
         dense.summary["provenance"] = dense_wanted
         save_dense(work_dir, dense)
     seconds["dense_s"] = round(time.perf_counter() - t, 2)
 
     say(progress, "masking")
     t = time.perf_counter()
-    mask_wanted = {**wanted["masking"], "upstream": {"sfm": record_digest(sfm.summary),
+    mask_wanted = {**wanted["masking"], "upstream": {**upstream,
                                                      "dense": record_digest(dense.summary)}}
     if "dense" in reused and _reusable(work_dir / "masking.json", mask_wanted, overwrite, stale):
         masked = load_masking(work_dir)
         reused.append("masking")
     else:
-        masked = mask_cloud(dense.cloud, capture, sfm.T_world_from_cam, sfm.registered, mask_cfg)
+        masked = mask_cloud(dense.cloud, capture, food_masks, sfm.T_world_from_cam,
+                            sfm.registered, mask_cfg)
         masked.report["provenance"] = mask_wanted
         save_masking(work_dir, masked)
     seconds["masking_s"] = round(time.perf_counter() - t, 2)
-    return StageResults(sfm, dense, masked, identity, tuple(reused), seconds)
+    return StageResults(sfm, food_masks, dense, masked, identity, tuple(reused), seconds)
 
 
 def run_sfm_stage(capture: Capture, work_dir: Path, cfg: SfmConfig | None = None,

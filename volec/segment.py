@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -115,6 +115,8 @@ class MaskSet:
     """Frames where segmentation fell back or failed, with why."""
     summary: dict[str, Any] = field(default_factory=dict)
     """Counts, the scene geometry found, timings (JSON-able)."""
+    files: tuple[str, ...] = ()
+    """Where each mask was read from (given masks), for messages."""
 
     def __len__(self) -> int:
         return len(self.masks)
@@ -122,6 +124,12 @@ class MaskSet:
     def mask(self, index: int) -> np.ndarray:
         """The mask of the frame at ``index``."""
         return self.masks[index]
+
+    def describe(self, name: str) -> str:
+        """The mask of the frame called ``name``, for messages: its file where it has one."""
+        if self.files:
+            return self.files[self.names.index(name)]
+        return f"the automatic mask of {name}"
 
     @property
     def area_fraction(self) -> list[float]:
@@ -136,7 +144,8 @@ def given_masks(capture: Capture) -> MaskSet:
     require_masks(capture)
     masks = tuple(read_mask(f) for f in capture.frames)
     return MaskSet(tuple(f.name for f in capture.frames), masks, "given",
-                   tuple(1.0 for _ in masks))
+                   tuple(1.0 for _ in masks), files=tuple(str(f.mask_path)
+                                                          for f in capture.frames))
 
 
 # ----------------------------------------------------------------------------- geometry
@@ -544,12 +553,6 @@ def segment(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarr
              summary["seconds"]["total_s"])
     return MaskSet(tuple(f.name for f in capture.frames), tuple(masks), "auto",
                    tuple(confidence), failed, summary)
-
-
-def with_masks(capture: Capture, masks: MaskSet) -> Capture:
-    """``capture`` unchanged but for a note of the masks' source (its frames keep their own
-    mask files; stages take masks from the :class:`MaskSet`)."""
-    return replace(capture, metadata={**capture.metadata, "masks": masks.source})
 
 
 def save_masks(work_dir: Path, masks: MaskSet) -> Path:
