@@ -91,7 +91,10 @@ class DenseConfig:
     n_depth_planes: int = 64
     """Fronto-parallel planes of the first sweep, uniform in inverse depth."""
     n_refine_hypotheses: int = 7
-    """Depths tried per pixel in each of the two refining sweeps."""
+    """Depths tried per pixel in each refining sweep."""
+    refine_sweeps: int = 2
+    """Local sweeps, each finer, that refine the first sweep's depth (0: the plane sweep and
+    its parabola alone)."""
     depth_range_margin: float = 0.08
     """The sparse points' depth range (2nd to 98th percentile) is widened by this fraction."""
     min_ncc: float = 0.45
@@ -430,7 +433,7 @@ def estimate_depth(views: list[View], ref_pos: int, sources: list[int],
         n = cfg.n_refine_hypotheses
         offsets = torch.linspace(-1.0, 1.0, n, device=device)
         span = step / 2
-        for _ in range(2):
+        for _ in range(cfg.refine_sweeps):
             hyp = inv[None] + offsets[:, None] * span  # (n, P)
             cost = _aggregate(ref, terms, hyp, cfg).reshape(n, P)
             best_cost, j = cost.max(dim=0)

@@ -57,23 +57,41 @@ class SegmentConfig:
     distance are not considered (the room beyond the table)."""
     plane_inlier_m: float = 0.0015
     """RANSAC inlier distance of the support plane, metres."""
-    max_plane_tilt_deg: float = 35.0
-    """The support plane's normal must point within this angle of the cameras' mean up
-    direction (or of the capture's stated up)."""
+    max_plane_tilt_deg: float = 20.0
+    """Where the capture states its up direction, the support plane's normal must point within
+    this angle of it."""
+    min_camera_elevation_deg: float = 5.0
+    """Every camera looks down on the support plane from at least this elevation."""
     min_height_m: float = 0.004
     """Sparse points at least this far above the support plane may be food."""
     cluster_eps_m: float = 0.008
     """Neighbouring food points are at most this far apart (DBSCAN radius)."""
     min_cluster_points: int = 25
     """An item needs at least this many sparse points."""
-    max_fixation_gap_m: float = 0.05
-    """The item's nearest point lies at most this far from the fixation point."""
+    max_fixation_gap: float = 0.25
+    """The item's nearest point lies at most this far from the fixation point, as a share of
+    the median camera distance (people aim roughly at the food)."""
+    min_cluster_share: float = 0.1
+    """Clusters with fewer points than this share of the largest are noise, not objects."""
     hull_views: int = 24
     """Views, evenly spread through the capture, whose GrabCut masks make the visual hull."""
     work_long_side_px: int = 480
     """GrabCut runs on images downscaled to at most this long side."""
     grabcut_iterations: int = 4
     """GrabCut iterations on the hull views."""
+    stereo_scale: float = 0.5
+    """Stereo runs at this fraction of GrabCut's working size (its seeds need no detail)."""
+    stereo_window_px: int = 7
+    """NCC window of that stereo, pixels at its size."""
+    stereo_planes: int = 48
+    """Planes of the plane sweep that finds the heights of the hull views' pixels."""
+    stereo_min_ncc: float = 0.5
+    """Depths whose NCC is below this are not used as seeds."""
+    plane_height_m: float = 0.0015
+    """Pixels that stereo puts within this of the support plane are background."""
+    plane_match_ncc: float = 0.8
+    """Textured pixels that match their neighbours through the support plane this well are
+    background (see :func:`plane_consistency`)."""
     seed_splat_px: int = 3
     """Radius of the disc each projected item point paints as probable food, work pixels."""
     probable_margin_px: int = 25
@@ -181,10 +199,11 @@ def _fixation(T_world_from_cam: np.ndarray) -> np.ndarray:
                            np.einsum("nij,nj->i", projectors, centres), rcond=None)[0]
 
 
-def _support_plane(points: np.ndarray, up: np.ndarray, cfg: SegmentConfig, seed: int
-                   ) -> tuple[np.ndarray, float, np.ndarray]:
-    """(normal towards ``up``, offset, inlier mask) of the dominant level plane in
-    ``points``; planes tilted more than allowed are skipped (up to three tries)."""
+def _support_plane(points: np.ndarray, centres: np.ndarray, up: np.ndarray | None,
+                   cfg: SegmentConfig, seed: int) -> tuple[np.ndarray, float, np.ndarray]:
+    """(normal towards the cameras, offset, inlier mask) of the dominant plane in ``points``
+    that the cameras all look down on (each at least ``min_camera_elevation_deg`` above it)
+    and, where the capture states its up direction, that is level; up to three tries."""
     import open3d as o3d
 
     o3d.utility.random.seed(seed)
@@ -197,59 +216,110 @@ def _support_plane(points: np.ndarray, up: np.ndarray, cfg: SegmentConfig, seed:
         normal = np.asarray(plane[:3], float)
         scale = np.linalg.norm(normal)
         normal, offset = normal / scale, float(plane[3]) / scale
-        if normal @ up < 0:
-            normal, offset = -normal, -offset
-        if np.degrees(np.arccos(np.clip(normal @ up, -1, 1))) <= cfg.max_plane_tilt_deg:
+        heights = centres @ normal + offset
+        if np.median(heights) < 0:
+            normal, offset, heights = -normal, -offset, -heights
+        elevation = np.degrees(np.arcsin(np.clip(
+            heights / np.linalg.norm(centres - points[remaining][inliers].mean(axis=0), axis=1),
+            -1, 1)))
+        level = up is None or np.degrees(np.arccos(np.clip(normal @ up, -1, 1))) \
+            <= cfg.max_plane_tilt_deg
+        if level and np.all(elevation >= cfg.min_camera_elevation_deg):
             mask = np.zeros(len(points), bool)
             mask[remaining[inliers]] = True
             return normal, offset, mask
         remaining = np.delete(remaining, inliers)
     raise SegmentationError(
-        "no level plate or table under the cameras' point of view: segmentation needs the "
-        "food resting on a surface the frames show around it (or give masks)")
+        "no plate or table that the cameras look down on around the point they look at: "
+        "segmentation needs the food resting on a surface the frames show around it (or give "
+        "masks)")
 
 
-def find_item(T_world_from_cam: np.ndarray, points: np.ndarray, up: np.ndarray | None,
-              cfg: SegmentConfig) -> SceneGeometry:
-    """The support plane and the item on it, from the registered cameras (N, 4, 4) and the
-    sparse points (M, 3) (see the module docstring, steps 1-3)."""
+def _item_cluster(local: np.ndarray, height: np.ndarray, fixation: np.ndarray,
+                  distance: float, cfg: SegmentConfig) -> tuple[np.ndarray, int]:
+    """(indices into ``local`` of the item's points, how many other objects stand there):
+    the cluster of points above the plane (``height``) nearest to the fixation point."""
     import open3d as o3d
 
-    fixation = _fixation(T_world_from_cam)
-    centres = T_world_from_cam[:, :3, 3]
-    distance = float(np.median(np.linalg.norm(centres - fixation, axis=1)))
-    if up is None:  # the cameras look down at the plate: up is where they are
-        up = np.mean(centres - fixation, axis=0)
-    up = np.asarray(up, float) / np.linalg.norm(up)
-    near = np.linalg.norm(points - fixation, axis=1) < cfg.search_radius_factor * distance
-    local = points[near]
-    if len(local) < cfg.min_cluster_points + 50:
-        raise SegmentationError(f"only {len(local)} sparse points around the point the "
-                                "cameras look at: too little texture to find the food")
-    normal, offset, on_plane = _support_plane(local, up, cfg, 0)
-    height = local @ normal + offset
     above = np.flatnonzero(height > cfg.min_height_m)
     if len(above) < cfg.min_cluster_points:
         raise SegmentationError("nothing stands on the plate at the point the cameras look "
                                 "at: aim the orbit at the food (or give masks)")
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(local[above]))
     labels = np.asarray(pcd.cluster_dbscan(cfg.cluster_eps_m, 4))
-    clusters = [above[labels == k] for k in range(labels.max() + 1)
-                if (labels == k).sum() >= cfg.min_cluster_points]
+    sizes = np.bincount(labels[labels >= 0]) if (labels >= 0).any() else np.zeros(0, int)
+    clusters = [above[labels == k] for k in range(len(sizes))
+                if sizes[k] >= max(cfg.min_cluster_points, cfg.min_cluster_share * sizes.max())]
     if not clusters:
         raise SegmentationError("no object at the point the cameras look at: the points above "
                                 "the plate are scattered (or give masks)")
     gaps = [float(np.linalg.norm(local[c] - fixation, axis=1).min()) for c in clusters]
     best = int(np.argmin(gaps))
-    if gaps[best] > cfg.max_fixation_gap_m:
+    if gaps[best] > cfg.max_fixation_gap * distance:
         raise SegmentationError(
             f"no object at the point the cameras look at (the nearest is {gaps[best] * 1000:.0f}"
             " mm away): aim the orbit at the food (or give masks)")
-    item = local[clusters[best]]
-    ring = np.linalg.norm((local - item.mean(axis=0)) - np.outer(height, normal), axis=1)
+    return clusters[best], len(clusters) - 1
+
+
+def _footprint_distance(points: np.ndarray, item: np.ndarray, normal: np.ndarray
+                        ) -> np.ndarray:
+    """Horizontal distance (N,) of ``points`` from the item's centre (along the plane)."""
+    rel = points - item.mean(axis=0)
+    return np.linalg.norm(rel - np.outer(rel @ normal, normal), axis=1)
+
+
+def _plane_under(local: np.ndarray, item_idx: np.ndarray, normal: np.ndarray, offset: float,
+                 cfg: SegmentConfig) -> tuple[np.ndarray, float]:
+    """The plane the item rests on: the dominant plane found first may be the table under a
+    plate; the points around the item's footprint (mostly the plate, when there is one) are
+    fitted again, and their plane kept when it is parallel to the first and below the item."""
+    import open3d as o3d
+
+    item = local[item_idx]
+    others = np.setdiff1d(np.arange(len(local)), item_idx)
+    reach = 1.3 * np.percentile(_footprint_distance(item, item, normal), 95) + 0.01
+    height = local @ normal + offset
+    lowest = np.percentile(height[item_idx], 2)
+    ring = others[(_footprint_distance(local[others], item, normal) < reach)
+                  & (height[others] < lowest + 0.002) & (height[others] > -0.02)]
+    if len(ring) < 50:
+        return normal, offset
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(local[ring]))
+    plane, inliers = pcd.segment_plane(cfg.plane_inlier_m, 3, 1000)
+    n = np.asarray(plane[:3], float)
+    n, o = n / np.linalg.norm(n), float(plane[3]) / np.linalg.norm(n)
+    if n @ normal < 0:
+        n, o = -n, -o
+    if len(inliers) < 0.3 * len(ring) or np.degrees(np.arccos(min(1.0, n @ normal))) > 10:
+        return normal, offset
+    return n, o
+
+
+def find_item(T_world_from_cam: np.ndarray, points: np.ndarray, up: np.ndarray | None,
+              cfg: SegmentConfig) -> SceneGeometry:
+    """The support plane and the item on it, from the registered cameras (N, 4, 4) and the
+    sparse points (M, 3) (see the module docstring, steps 1-3)."""
+    fixation = _fixation(T_world_from_cam)
+    centres = T_world_from_cam[:, :3, 3]
+    distance = float(np.median(np.linalg.norm(centres - fixation, axis=1)))
+    if up is not None:
+        up = np.asarray(up, float) / np.linalg.norm(up)
+    near = np.linalg.norm(points - fixation, axis=1) < cfg.search_radius_factor * distance
+    local = points[near]
+    if len(local) < cfg.min_cluster_points + 50:
+        raise SegmentationError(f"only {len(local)} sparse points around the point the "
+                                "cameras look at: too little texture to find the food")
+    normal, offset, _ = _support_plane(local, centres, up, cfg, 0)
+    item_idx, _ = _item_cluster(local, local @ normal + offset, fixation, distance, cfg)
+    normal, offset = _plane_under(local, item_idx, normal, offset, cfg)
+    height = local @ normal + offset
+    item_idx, others = _item_cluster(local, height, fixation, distance, cfg)
+    item = local[item_idx]
     extent = float(np.percentile(np.linalg.norm(item - item.mean(axis=0), axis=1), 95))
-    plane_points = local[on_plane & (ring < 3.0 * extent + 0.02)]
-    return SceneGeometry(fixation, normal, offset, item, plane_points, len(clusters) - 1)
+    on_plane = np.abs(height) < cfg.plane_inlier_m
+    near_item = _footprint_distance(local, item, normal) < 3.0 * extent + 0.02
+    return SceneGeometry(fixation, normal, offset, item, local[on_plane & near_item], others)
 
 
 # ----------------------------------------------------------------------------- one view
@@ -300,21 +370,132 @@ def _splat(shape: tuple[int, int], pix: np.ndarray, radius: int) -> np.ndarray:
     return ndimage.binary_dilation(image, iterations=radius) if radius else image
 
 
-def seed_labels(view: _View, geometry: SceneGeometry, cfg: SegmentConfig) -> np.ndarray:
+def _convex_fill(shape: tuple[int, int], pix: np.ndarray) -> np.ndarray:
+    """The filled convex hull (H, W) bool of the valid pixel positions ``pix`` (N, 2)."""
+    import cv2
+
+    out = np.zeros(shape, np.uint8)
+    ok = pix[pix[:, 0] >= 0]
+    if len(ok) >= 3:
+        cv2.fillConvexPoly(out, cv2.convexHull(ok.astype(np.int32)), 1)
+    return out.astype(bool)
+
+
+def item_region(view: _View, geometry: SceneGeometry) -> np.ndarray:
+    """Where the item can be in a view: the convex hull of its points and of their feet on
+    the support plane (an item stands on the plate; its points often cover only its top)."""
+    points = geometry.item_points
+    feet = points - np.outer(geometry.height_m(points), geometry.normal)
+    return _convex_fill(view.rgb.shape[:2], _pixels(view, np.vstack([points, feet])))
+
+
+def plane_consistency(view: _View, neighbours: list[_View], geometry: SceneGeometry,
+                      window_px: int = 7, min_texture: float = 2e-4) -> np.ndarray:
+    """Per pixel of ``view`` (H, W) float: how well it matches the neighbours warped onto it
+    through the support plane (the best normalised cross-correlation over the neighbours;
+    NaN where the view has no texture in two directions: a shading gradient or wood grain
+    matches shifted copies of itself, so only corners and speckles can tell). The plate, the
+    table and the shadows on them match; the item, which stands above the plane, does not.
+    The best over neighbours on both sides copes with plane regions that the item hides from
+    one of them."""
+    import cv2
+
+    gray = cv2.cvtColor(view.rgb, cv2.COLOR_RGB2GRAY).astype(np.float32) / 255.0
+    k = (window_px, window_px)
+    mean = cv2.blur(gray, k)
+    std = np.sqrt(np.maximum(cv2.blur(gray * gray, k) - mean * mean, 0))
+    texture = cv2.cornerMinEigenVal(gray, window_px, 3)
+    best = np.full(gray.shape, -1.0, np.float32)
+    R_v, t_v = view.T_cam_from_world[:3, :3], view.T_cam_from_world[:3, 3]
+    n_v = R_v @ geometry.normal  # the plane in view coordinates: n_v . X = d_v
+    d_v = -(geometry.offset_m - geometry.normal @ (R_v.T @ t_v))
+    for other in neighbours:
+        T = other.T_cam_from_world @ np.linalg.inv(view.T_cam_from_world)
+        H = other.intrinsics.K @ (T[:3, :3] + np.outer(T[:3, 3], n_v) / d_v) @ np.linalg.inv(
+            view.intrinsics.K)
+        other_gray = cv2.cvtColor(other.rgb, cv2.COLOR_RGB2GRAY).astype(np.float32) / 255.0
+        warped = cv2.warpPerspective(other_gray, H, gray.shape[::-1],
+                                     flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                                     borderMode=cv2.BORDER_CONSTANT, borderValue=-1.0)
+        valid = cv2.erode((warped >= 0).astype(np.uint8), np.ones(k, np.uint8)) > 0
+        w_mean = cv2.blur(warped, k)
+        w_std = np.sqrt(np.maximum(cv2.blur(warped * warped, k) - w_mean * w_mean, 0))
+        ncc = (cv2.blur(gray * warped, k) - mean * w_mean) / (std * w_std + 1e-6)
+        best = np.where(valid, np.maximum(best, ncc), best)
+    return np.where(texture >= min_texture, best, np.nan)
+
+
+def stereo_heights(view: _View, neighbours: list[_View], roi: np.ndarray,
+                   geometry: SceneGeometry, cfg: SegmentConfig) -> np.ndarray:
+    """Per pixel of ``view`` inside ``roi`` (H, W): the height above the support plane of what
+    it sees, from a plane-sweep depth map against ``neighbours`` (:mod:`volec.dense`'s
+    stereo, at the segmentation's working size); NaN where stereo found no depth. Where the
+    item's sparse points cover only its top, its body still stands above the plane."""
+    import cv2
+
+    from volec.dense import DenseConfig, View, backproject, depth_range, estimate_depth
+
+    def dense_view(v: _View, region: np.ndarray) -> View:
+        h, w = v.rgb.shape[:2]
+        size = (max(1, round(w * cfg.stereo_scale)), max(1, round(h * cfg.stereo_scale)))
+        rgb = cv2.resize(v.rgb, size, interpolation=cv2.INTER_AREA)
+        small = cv2.resize(region.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0
+        gray = (rgb.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)) / 255
+        K = v.intrinsics.scaled(cfg.stereo_scale).K
+        return View(0, K, v.T_cam_from_world, gray, rgb, small)
+
+    views = [dense_view(view, roi)] + [dense_view(n, np.ones_like(roi)) for n in neighbours]
+    dcfg = DenseConfig(n_depth_planes=cfg.stereo_planes, min_ncc=cfg.stereo_min_ncc,
+                       top_k_sources=1, ncc_window_px=cfg.stereo_window_px, refine_sweeps=0)
+    near_far = depth_range(views[0], np.vstack([geometry.item_points, geometry.plane_points]),
+                           0.15)
+    if near_far is None or not neighbours or not roi.any():
+        return np.full(roi.shape, np.nan)
+    depth = estimate_depth(views, 0, list(range(1, len(views))), near_far, dcfg).depth_m
+    rows, cols = np.nonzero(depth > 0)
+    points = backproject(views[0].K, views[0].T_cam_from_world,
+                         np.stack([cols, rows], axis=1).astype(float), depth[rows, cols])
+    small = np.full(depth.shape, np.nan)
+    small[rows, cols] = geometry.height_m(points)
+    return cv2.resize(small, roi.shape[::-1], interpolation=cv2.INTER_NEAREST)
+
+
+def seed_labels(view: _View, geometry: SceneGeometry, cfg: SegmentConfig,
+                consistency: np.ndarray | None = None,
+                heights: np.ndarray | None = None) -> np.ndarray:
     """GrabCut's starting labels for one view: the item's projected points (closed and
-    filled) probable food, a margin around them probable background, the plane's projected
-    points outside that region and the rest of the image sure background."""
+    filled) probable food; the rest of the item's region (:func:`item_region`) and a margin
+    around it probable background; the plane's projected points outside the item and the
+    rest of the image sure background. With the plane ``consistency`` map, textured pixels
+    that match the plane are sure background (shadows, a table the colour of the food) and
+    textured pixels of the item's region that do not are probable food."""
     import cv2
 
     shape = view.rgb.shape[:2]
     item = _splat(shape, _pixels(view, geometry.item_points), cfg.seed_splat_px)
     item = ndimage.binary_fill_holes(ndimage.binary_closing(item, iterations=4))
-    reach = ndimage.binary_dilation(item, iterations=cfg.probable_margin_px)
+    region = item_region(view, geometry) | item
+    reach = ndimage.binary_dilation(region, iterations=cfg.probable_margin_px)
     plane = _splat(shape, _pixels(view, geometry.plane_points), 1) & ~item
     labels = np.full(shape, cv2.GC_BGD, np.uint8)
     labels[reach] = cv2.GC_PR_BGD
     labels[item] = cv2.GC_PR_FGD
     labels[plane & ~ndimage.binary_dilation(item, iterations=2)] = cv2.GC_BGD
+    if consistency is not None:  # evidence of background only: a smooth plate matches badly
+        with np.errstate(invalid="ignore"):
+            on_plane = consistency > cfg.plane_match_ncc
+        labels[on_plane & ~item] = cv2.GC_BGD
+    if heights is not None:
+        with np.errstate(invalid="ignore"):
+            standing = heights > cfg.min_height_m
+            lying = np.abs(heights) < cfg.plane_height_m
+        standing = ndimage.binary_opening(standing & reach, iterations=1)
+        labels[standing] = cv2.GC_PR_FGD
+        # a stereo window straddling the item's border gives the background beside it the
+        # item's depth: only pixels a window's width inside are sure
+        inset = int(np.ceil(cfg.stereo_window_px / 2 / cfg.stereo_scale)) + 2
+        labels[ndimage.binary_erosion(standing, iterations=inset)] = cv2.GC_FGD
+        labels[lying & ~item & (labels != cv2.GC_FGD)] = cv2.GC_BGD
     return labels
 
 
@@ -345,6 +526,26 @@ def grabcut(rgb: np.ndarray, labels: np.ndarray, iterations: int) -> np.ndarray:
 # ----------------------------------------------------------------------------- the hull
 
 
+def plane_neighbours(T_world_from_cam: np.ndarray, registered: np.ndarray, index: int,
+                     geometry: SceneGeometry, angle_deg: float = 12.0) -> list[int]:
+    """Two registered frames that see the item from about ``angle_deg`` to either side of
+    frame ``index`` (the nearest on each side, around the plane's normal)."""
+    centre = geometry.item_points.mean(axis=0)
+    rel = T_world_from_cam[:, :3, 3] - centre
+    flat = rel - np.outer(rel @ geometry.normal, geometry.normal)
+    ref = flat[index]
+    cross = np.cross(ref, flat) @ geometry.normal
+    angle = np.degrees(np.arctan2(cross, flat @ ref))
+    chosen = []
+    for side in (1.0, -1.0):
+        ok = registered & (side * angle > 0.3 * angle_deg)
+        ok[index] = False
+        if ok.any():
+            candidates = np.flatnonzero(ok)
+            chosen.append(int(candidates[np.argmin(np.abs(side * angle[ok] - angle_deg))]))
+    return chosen
+
+
 def hull_views(registered: np.ndarray, n: int) -> np.ndarray:
     """Up to ``n`` registered frame indices, evenly spread through the capture."""
     chosen = np.flatnonzero(registered)
@@ -353,20 +554,22 @@ def hull_views(registered: np.ndarray, n: int) -> np.ndarray:
     return chosen
 
 
-def visual_hull(views: list[_View], masks: list[np.ndarray], geometry: SceneGeometry,
-                cfg: SegmentConfig) -> np.ndarray:
-    """(P, 3) the centres of the voxels that the masks' agreement keeps, above the plane
-    (step 5): a voxel is food when at most ``hull_max_outside_views`` of the views that see it
-    put it outside their (work-resolution) mask, and at least three views see it."""
+def _hull_grid(geometry: SceneGeometry, cfg: SegmentConfig, voxel_m: float) -> np.ndarray:
+    """(P, 3) centres of a ``voxel_m`` grid around the item, down to its plane."""
     lo = geometry.item_points.min(axis=0) - cfg.hull_margin_m
     hi = geometry.item_points.max(axis=0) + cfg.hull_margin_m
-    # down to the plane under the item
     foot = geometry.item_points - np.outer(geometry.height_m(geometry.item_points),
                                            geometry.normal)
     lo, hi = np.minimum(lo, foot.min(axis=0) - 0.005), np.maximum(hi, foot.max(axis=0) + 0.005)
-    axes = [np.arange(lo[i], hi[i], cfg.voxel_m) for i in range(3)]
+    axes = [np.arange(lo[i], hi[i], voxel_m) for i in range(3)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    grid = grid[geometry.height_m(grid) > -0.5 * cfg.voxel_m]
+    return grid[geometry.height_m(grid) > -0.5 * voxel_m]
+
+
+def _carve(grid: np.ndarray, views: list[_View], masks: list[np.ndarray],
+           max_outside: int) -> np.ndarray:
+    """The points of ``grid`` that at most ``max_outside`` views see outside their mask and
+    at least three views see."""
     seen = np.zeros(len(grid), np.int32)
     outside = np.zeros(len(grid), np.int32)
     for view, mask in zip(views, masks, strict=True):
@@ -374,9 +577,38 @@ def visual_hull(views: list[_View], masks: list[np.ndarray], geometry: SceneGeom
         ok = pix[:, 0] >= 0
         seen += ok
         outside[ok] += ~mask[pix[ok, 1], pix[ok, 0]]
-        keep = outside <= cfg.hull_max_outside_views
+        keep = outside <= max_outside
         grid, seen, outside = grid[keep], seen[keep], outside[keep]
     return grid[seen >= 3]
+
+
+def visual_hull(views: list[_View], masks: list[np.ndarray], geometry: SceneGeometry,
+                cfg: SegmentConfig) -> np.ndarray:
+    """(P, 3) voxel centres around the surface of the hull the masks agree on, above the plane
+    (step 5): a voxel is food when at most ``hull_max_outside_views`` of the views that see it
+    put it outside their (work-resolution) mask, and at least three views see it. Carved
+    first on a grid four times coarser, with the masks grown by a coarse voxel, then at full
+    resolution only in the coarse surface cells (the shell the silhouettes need; they are
+    filled in the image)."""
+    coarse_m = 4 * cfg.voxel_m
+    reach = [int(np.ceil(coarse_m * v.intrinsics.fx
+                         / np.median(np.linalg.norm(geometry.item_points - _centre(v), axis=1))))
+             for v in views]
+    grown = [ndimage.binary_dilation(m, iterations=r) for m, r in zip(masks, reach, strict=True)]
+    coarse = _carve(_hull_grid(geometry, cfg, coarse_m), views, grown,
+                    cfg.hull_max_outside_views)
+    if not len(coarse):
+        return coarse
+    coarse = hull_surface(coarse, coarse_m)  # the inside needs no finer look
+    offsets = (np.stack(np.meshgrid(*[np.arange(-4, 4)] * 3, indexing="ij"), axis=-1)
+               .reshape(-1, 3) + 0.5) * cfg.voxel_m
+    fine = (coarse[:, None, :] + offsets[None]).reshape(-1, 3)
+    fine = fine[geometry.height_m(fine) > -0.5 * cfg.voxel_m]
+    return _carve(fine, views, masks, cfg.hull_max_outside_views)
+
+
+def _centre(view: _View) -> np.ndarray:
+    return np.linalg.inv(view.T_cam_from_world)[:3, 3]
 
 
 def hull_surface(voxels: np.ndarray, voxel_m: float) -> np.ndarray:
@@ -505,8 +737,17 @@ def segment(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarr
                          None if up is None else np.asarray(up, float), cfg)
     chosen = hull_views(registered, cfg.hull_views)
     views = [_work_view(capture, int(i), T_world_from_cam[i], cfg) for i in chosen]
-    coarse = [grabcut(v.rgb, seed_labels(v, geometry, cfg), cfg.grabcut_iterations)
-              for v in tqdm(views, desc="segment: hull views", disable=not progress)]
+    coarse = []
+    for i, view in zip(tqdm(chosen, desc="segment: hull views", disable=not progress), views,
+                       strict=True):
+        others = [_work_view(capture, int(j), T_world_from_cam[j], cfg)
+                  for j in plane_neighbours(T_world_from_cam, registered, int(i), geometry)]
+        consistency = plane_consistency(view, others, geometry)
+        roi = ndimage.binary_dilation(item_region(view, geometry),
+                                      iterations=cfg.probable_margin_px)
+        heights = stereo_heights(view, others, roi, geometry, cfg)
+        coarse.append(grabcut(view.rgb, seed_labels(view, geometry, cfg, consistency, heights),
+                              cfg.grabcut_iterations))
     voxels = visual_hull(views, coarse, geometry, cfg)
     if len(voxels) == 0:
         raise SegmentationError("the views do not agree on any food: the colours of food and "
