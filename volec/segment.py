@@ -71,6 +71,9 @@ class SegmentConfig:
     max_fixation_gap: float = 0.25
     """The item's nearest point lies at most this far from the fixation point, as a share of
     the median camera distance (people aim roughly at the food)."""
+    ambiguous_gap_m: float = 0.01
+    """A second object at most this much farther from the fixation point than the nearest,
+    and at least half its size, makes the choice ambiguous: an error."""
     min_cluster_share: float = 0.1
     """Clusters with fewer points than this share of the largest are noise, not objects."""
     hull_views: int = 24
@@ -253,12 +256,23 @@ def _item_cluster(local: np.ndarray, height: np.ndarray, fixation: np.ndarray,
     if not clusters:
         raise SegmentationError("no object at the point the cameras look at: the points above "
                                 "the plate are scattered (or give masks)")
-    gaps = [float(np.linalg.norm(local[c] - fixation, axis=1).min()) for c in clusters]
-    best = int(np.argmin(gaps))
+    gaps = np.array([float(np.linalg.norm(local[c] - fixation, axis=1).min())
+                     for c in clusters])
+    order = np.argsort(gaps)
+    best = int(order[0])
     if gaps[best] > cfg.max_fixation_gap * distance:
         raise SegmentationError(
             f"no object at the point the cameras look at (the nearest is {gaps[best] * 1000:.0f}"
             " mm away): aim the orbit at the food (or give masks)")
+    if len(order) > 1:
+        second = int(order[1])
+        if (gaps[second] <= cfg.ambiguous_gap_m + gaps[best]
+                and len(clusters[second]) >= 0.5 * len(clusters[best])):
+            raise SegmentationError(
+                "several separate objects stand where the cameras look (clusters of "
+                f"{len(clusters[best])} and {len(clusters[second])} points, "
+                f"{gaps[best] * 1000:.0f} and {gaps[second] * 1000:.0f} mm from it): film one "
+                "item at a time, or give masks")
     return clusters[best], len(clusters) - 1
 
 
@@ -717,6 +731,17 @@ def refine_in_band(rgb: np.ndarray, silhouette: np.ndarray, cfg: SegmentConfig,
 # ----------------------------------------------------------------------------- the stage
 
 
+def check_in_view(masks: list[np.ndarray], max_share: float) -> None:
+    """Raise :class:`SegmentationError` when the food touches the image border in more than
+    ``max_share`` of the frames (it is cut off: its silhouettes, and the hull, are wrong)."""
+    cut = sum(bool(m[0].any() or m[-1].any() or m[:, 0].any() or m[:, -1].any())
+              for m in masks)
+    if cut > max_share * len(masks):
+        raise SegmentationError(
+            f"the food touches the image border in {cut} of {len(masks)} frames: step back so "
+            "that the whole item is in view, or give masks")
+
+
 def _iou(a: np.ndarray, b: np.ndarray) -> float:
     union = np.logical_or(a, b).sum()
     return float(np.logical_and(a, b).sum() / union) if union else 1.0
@@ -755,7 +780,6 @@ def segment(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarr
     surface = hull_surface(voxels, cfg.voxel_m)
     t_hull = time.perf_counter() - start
     masks, confidence, failed = [], [], {}
-    border = 0
     for i, frame in enumerate(tqdm(capture.frames, desc="segment: masks",
                                    disable=not progress)):
         sil = hull_silhouette(surface, frame.intrinsics, np.linalg.inv(T_world_from_cam[i]),
@@ -770,13 +794,9 @@ def segment(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarr
             failed[frame.name] = (f"the colour refinement disagreed with the geometry "
                                   f"(IoU {agreement:.2f}): the hull's silhouette is kept")
             mask = sil
-        border += bool(mask[0].any() or mask[-1].any() or mask[:, 0].any() or mask[:, -1].any())
         masks.append(mask)
         confidence.append(round(agreement, 4))
-    if border > cfg.max_border_frames * len(capture):
-        raise SegmentationError(
-            f"the food touches the image border in {border} of {len(capture)} frames: step "
-            "back so that the whole item is in view")
+    check_in_view(masks, cfg.max_border_frames)
     summary = {
         "method": "geometry seeds + GrabCut + visual hull (weights-free)",
         "hull_views": [capture.frames[i].name for i in chosen],

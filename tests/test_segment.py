@@ -1,0 +1,122 @@
+"""Segmentation: masks against the exact ones on a synthetic scene, and every error."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from volec.capture import read_transforms_json
+from volec.geometry import look_at_opencv
+from volec.metrics import sample_surface
+from volec.segment import (
+    SegmentationError,
+    SegmentConfig,
+    check_in_view,
+    find_item,
+    load_masks,
+    save_masks,
+    segment,
+)
+from volec.synth import load_ground_truth_mesh, load_truth
+
+UP = np.array([0.0, 0.0, 1.0])
+
+
+def _ring_cameras(n: int = 12, radius: float = 0.3, height: float = 0.2,
+                  target=(0.0, 0.0, 0.02)) -> np.ndarray:
+    poses = []
+    for k in range(n):
+        a = 2 * np.pi * k / n
+        eye = np.array([radius * np.cos(a), radius * np.sin(a), height])
+        poses.append(look_at_opencv(eye, np.asarray(target, float), UP))
+    return np.stack(poses)
+
+
+def _scene_points(rng: np.random.Generator, objects: list[tuple[tuple, float]]) -> np.ndarray:
+    """A textured table (z = 0, 40 cm across) and spheres (centre, radius) standing on it."""
+    table = np.c_[rng.uniform(-0.2, 0.2, (3000, 2)), np.zeros(3000)]
+    parts = [table]
+    for centre, r in objects:
+        d = rng.normal(size=(400, 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        sphere = np.asarray(centre) + r * d
+        parts.append(sphere[sphere[:, 2] > 0.004])
+    return np.vstack(parts)
+
+
+def test_the_item_on_the_table_is_found_and_a_second_object_left_out():
+    rng = np.random.default_rng(0)
+    points = _scene_points(rng, [((0.0, 0.0, 0.03), 0.03), ((0.12, 0.05, 0.02), 0.02)])
+    geometry = find_item(_ring_cameras(), points, UP, SegmentConfig())
+    np.testing.assert_allclose(geometry.normal, UP, atol=1e-3)
+    assert abs(geometry.offset_m) < 1e-3
+    assert np.linalg.norm(geometry.item_points.mean(axis=0)[:2]) < 0.01  # the centre one
+    assert geometry.other_clusters == 1
+    assert np.all(geometry.height_m(geometry.plane_points) < 2e-3)
+
+
+@pytest.mark.parametrize("objects, words", [
+    ([], "nothing stands on the plate"),
+    ([((0.15, 0.1, 0.03), 0.03)], "no object at the point the cameras look at"),
+    ([((-0.02, 0.0, 0.015), 0.015), ((0.02, 0.0, 0.015), 0.015)], "several separate objects"),
+])
+def test_what_cannot_be_the_food_is_a_clear_error(objects, words):
+    points = _scene_points(np.random.default_rng(1), objects)
+    # the two small balls just touch: far enough apart for two clusters only with a fine eps
+    cfg = SegmentConfig(cluster_eps_m=0.004)
+    with pytest.raises(SegmentationError, match=words):
+        find_item(_ring_cameras(), points, UP, cfg)
+
+
+def test_cameras_that_do_not_look_down_on_a_plane_are_an_error():
+    points = _scene_points(np.random.default_rng(2), [((0.0, 0.0, 0.03), 0.03)])
+    below = _ring_cameras(height=-0.2, target=(0.0, 0.0, 0.0))
+    with pytest.raises(SegmentationError, match="look down on"):
+        find_item(below, points, UP, SegmentConfig())
+
+
+def test_food_cut_by_the_image_border_in_most_frames_is_an_error():
+    inside = np.zeros((40, 40), bool)
+    inside[10:30, 10:30] = True
+    cut = np.zeros((40, 40), bool)
+    cut[0:20, 10:30] = True
+    check_in_view([inside] * 6 + [cut] * 4, 0.5)
+    with pytest.raises(SegmentationError, match="touches the image border in 6 of 10"):
+        check_in_view([inside] * 4 + [cut] * 6, 0.5)
+
+
+def test_masks_match_the_exact_ones_on_a_synthetic_capture(quick_capture, tmp_path):
+    """The quick apple capture (12 frames around it, 240x320): with its exact poses and
+    sparse points sampled from what SfM would see (the food and the plate around it)."""
+    capture = read_transforms_json(quick_capture / "capture")
+    exact = read_transforms_json(quick_capture / "ground_truth" / "transforms_exact.json",
+                                 check_image_sizes=False)
+    poses = np.stack([f.T_world_from_cam for f in exact.frames])
+    food = load_ground_truth_mesh(quick_capture)
+    up = np.asarray(load_truth(quick_capture)["world_up"], float)
+    food_points = sample_surface(food, 1500, seed=0)
+    food_points = food_points[(food_points - food.bounds[0]) @ up > 0.01]  # the top SfM sees
+    rng = np.random.default_rng(3)
+    side, other = np.cross(up, [1.0, 0, 0]), np.cross(up, np.cross(up, [1.0, 0, 0]))
+    radius = np.sqrt(rng.uniform(0.0, 0.08**2, 3000))
+    angle = rng.uniform(0, 2 * np.pi, 3000)
+    centre = food.bounds.mean(axis=0)
+    base = centre - up * ((centre - food.bounds[0]) @ up)
+    plate = base + np.outer(radius * np.cos(angle), side) + np.outer(radius * np.sin(angle),
+                                                                     other)
+    plate = plate[np.linalg.norm(plate - base, axis=1) > 0.5 * np.ptp(food.bounds, axis=0).max()]
+    masks = segment(capture, poses, np.ones(len(capture), bool), np.vstack([food_points, plate]),
+                    SegmentConfig(hull_views=12, work_long_side_px=320))
+    assert masks.source == "auto" and len(masks) == len(capture)
+    ious = []
+    for frame, mask in zip(capture.frames, masks.masks, strict=True):
+        exact_mask = np.asarray(Image.open(frame.mask_path).convert("L")) > 127
+        ious.append((mask & exact_mask).sum() / (mask | exact_mask).sum())
+    assert np.median(ious) > 0.95 and min(ious) > 0.85
+    # written as PNGs with a record; read back the same
+    save_masks(tmp_path, masks)
+    back = load_masks(tmp_path)
+    assert back.names == masks.names and all(
+        np.array_equal(a, b) for a, b in zip(back.masks, masks.masks, strict=True))
+    assert (tmp_path / "masks" / "frame_00000.png").exists()
