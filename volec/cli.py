@@ -47,6 +47,10 @@ def _cmd_synth(args: argparse.Namespace) -> int:
         changes["drift_m"] = args.drift_mm / 1000.0
     if args.no_masks:
         changes["masks_in_capture"] = False
+    if args.mask_noise:
+        changes["mask_noise"] = True
+    if args.setup:
+        changes["setup"] = args.setup
     cfg = cfg.with_(**changes)
     start = time.perf_counter()
     if args.item == "all":
@@ -253,6 +257,13 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument("--workers", type=int, default=2, help="render processes (default 2)")
     synth.add_argument("--no-masks", action="store_true",
                        help="leave food masks out of the capture (ground truth keeps them)")
+    synth.add_argument("--mask-noise", action="store_true",
+                       help="give the capture masks as a real segmenter would (boundaries off, "
+                       "shadow leaks, missed chunks, false blobs, two empty); ground truth "
+                       "keeps the exact ones")
+    synth.add_argument("--setup", help="plain (default), hard (each item a hard setup for "
+                       "segmentation) or one of: white_on_white, plate_like_food, "
+                       "across_the_rim, strong_shadows, cup_beside, fork_beside, dim, bright")
     synth.add_argument("--overwrite", action="store_true",
                        help="replace an existing output folder")
     synth.set_defaults(func=_cmd_synth)

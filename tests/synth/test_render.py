@@ -94,3 +94,20 @@ def test_the_phone_look_has_soft_shadows_and_blur():
     # the optical blur lowers the pixel-to-pixel differences
     assert np.abs(np.diff(phone.rgb[..., 1], axis=1)).mean() < 0.8 * np.abs(
         np.diff(sharp.rgb[..., 1], axis=1)).mean()
+
+
+def test_a_second_object_is_rendered_but_is_not_food():
+    from volec.synth.render import LOOKS
+    from volec.synth.scene import OTHER, Setup
+
+    food = item_mesh("apple", 48)
+    cup_scene = build_scene(food, "apple", seed=1, setup=Setup(second_object="cup"))
+    K = np.array([[200.0, 0, 99.5], [0, 200.0, 79.5], [0, 0, 1]])
+    T = look_at_opencv(np.array([0.0, -0.45, 0.3]), np.array([0.1, 0.0, 0.02]),
+                       np.array([0.0, 0.0, 1.0]))
+    view = Renderer(cup_scene).render(K, 200, 160, T, LOOKS["phone"])
+    assert (view.label == OTHER).sum() > 200
+    assert not (view.food_mask & (view.label == OTHER)).any()
+    # the food across the rim: the plate moves, the food stays where it was
+    rim = build_scene(food, "apple", seed=1, setup=Setup(food_offset=0.85))
+    np.testing.assert_allclose(rim.food.bounds, cup_scene.food.bounds)

@@ -43,7 +43,7 @@ from volec.io import (
     write_json_atomic,
 )
 from volec.synth.render import LOOKS, LookConfig, Renderer, to_srgb8
-from volec.synth.scene import Scene, build_scene
+from volec.synth.scene import HARD_SETUPS, Scene, Setup, build_scene, hard_setup
 from volec.synth.shapes import ITEMS, item_mesh, stable_seed
 from volec.synth.trajectory import (
     DriftConfig,
@@ -89,6 +89,15 @@ class SynthConfig:
     """Relative frame-to-frame auto-exposure change."""
     jpeg_quality: int = 90
     """JPEG quality of the frames."""
+    mask_noise: bool = False
+    """The capture's masks are what a real segmenter might give (boundaries a few pixels
+    off, the shadow leaking in on some frames, a missed chunk or a false blob on a few, two
+    empty), not the exact ones (:mod:`volec.synth.masknoise`); the ground truth keeps those."""
+    setup: str = "plain"
+    """What surrounds the food: ``plain`` (the benchmark's plate, centred), ``hard`` (each
+    item one of :data:`volec.synth.scene.HARD_SETUPS`: a plate like the food, white on white,
+    across the rim, strong shadows, a cup or a fork beside it, dim or bright light) or one of
+    those names for every item."""
     masks_in_capture: bool = True
     """Also give the capture the exact food masks (as a perfect segmentation model would)."""
     mesh_resolution: int = 112
@@ -164,8 +173,16 @@ def _init_worker(scene: Scene) -> None:
     _WORKER["renderer"] = Renderer(scene)
 
 
-def _render_frame(args: tuple[int, np.ndarray, SynthConfig]) -> tuple[bytes, bytes]:
-    """Render one frame; returns (JPEG bytes, mask PNG bytes). Seeded by frame index."""
+def _png(mask: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    Image.fromarray((mask * 255).astype(np.uint8)).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def _render_frame(args: tuple[int, np.ndarray, SynthConfig]
+                  ) -> tuple[bytes, bytes, np.ndarray]:
+    """Render one frame; returns (JPEG bytes, mask PNG bytes, the shadow beside the food as a
+    packed bit array). Seeded by frame index."""
     index, T_scene_from_cam, cfg = args
     renderer: Renderer = _WORKER["renderer"]
     K = cfg.intrinsics.K
@@ -178,19 +195,19 @@ def _render_frame(args: tuple[int, np.ndarray, SynthConfig]) -> tuple[bytes, byt
     img = to_srgb8(linear).astype(float)
     img += rng.normal(scale=cfg.image_noise_std, size=img.shape)
     img8 = np.clip(np.round(img), 0, 255).astype(np.uint8)
-    jpg, png = io.BytesIO(), io.BytesIO()
+    jpg = io.BytesIO()
     Image.fromarray(img8).save(jpg, format="JPEG", quality=cfg.jpeg_quality)
-    Image.fromarray((view.food_mask * 255).astype(np.uint8)).save(png, format="PNG")
-    return jpg.getvalue(), png.getvalue()
+    return jpg.getvalue(), _png(view.food_mask), np.packbits(view.shadow)
 
 
 def render_frames(
     scene: Scene, poses: np.ndarray, cfg: SynthConfig, progress: bool = True
-) -> list[tuple[bytes, bytes]]:
-    """Render every pose of ``poses`` (scene frame) to (JPEG, mask PNG) bytes, in order."""
+) -> list[tuple[bytes, bytes, np.ndarray]]:
+    """Render every pose of ``poses`` (scene frame) to (JPEG, mask PNG, packed shadow), in
+    order."""
     jobs = [(i, poses[i], cfg) for i in range(len(poses))]
     bar = tqdm(total=len(jobs), desc="render", unit="frame", disable=not progress)
-    results: list[tuple[bytes, bytes]] = []
+    results: list[tuple[bytes, bytes, np.ndarray]] = []
     if cfg.workers == 1 or len(jobs) < 4:
         _init_worker(scene)
         for job in jobs:
@@ -219,6 +236,18 @@ class SynthScene:
     reported_scene_poses: np.ndarray
 
 
+def scene_setup(item: str, name: str) -> Setup:
+    """The :class:`~volec.synth.scene.Setup` that ``SynthConfig.setup`` names for ``item``."""
+    if name == "plain":
+        return Setup()
+    if name == "hard":
+        return hard_setup(item)[1]
+    if name not in HARD_SETUPS:
+        raise ConfigError(f"unknown setup '{name}'; use plain, hard or one of "
+                          f"{', '.join(HARD_SETUPS)}")
+    return HARD_SETUPS[name]
+
+
 def plan_capture(item: str, cfg: SynthConfig) -> SynthScene:
     """Build the scene, the exact trajectory and the AR-reported poses for ``item``."""
     if item not in ITEMS:
@@ -227,7 +256,7 @@ def plan_capture(item: str, cfg: SynthConfig) -> SynthScene:
     food = item_mesh(item, cfg.mesh_resolution)
     texture_seed = int(rng.integers(2**31))
     scene = build_scene(food, item, seed=texture_seed, yaw_rad=rng.uniform(0, 2 * np.pi),
-                        texture_contrast=cfg.texture_contrast)
+                        texture_contrast=cfg.texture_contrast, setup=scene_setup(item, cfg.setup))
     lo, hi = scene.food.bounds
     centre = (lo + hi) / 2
     radius = float(np.linalg.norm(hi - lo) / 2)
@@ -305,6 +334,22 @@ def is_current(out: Path, cfg: SynthConfig) -> bool:
     return recorded.get("config") == cfg.recorded() and recorded.get("code") == synth_code()
 
 
+def _capture_masks(rendered: list[tuple[bytes, bytes, np.ndarray]], cfg: SynthConfig
+                   ) -> tuple[list[bytes], list[str]]:
+    """The mask PNGs the capture gets: the exact ones, or with ``mask_noise`` what a real
+    segmenter might give (:mod:`volec.synth.masknoise`), with what was done to each."""
+    if not cfg.mask_noise:
+        return [png for _, png, _ in rendered], []
+    from volec.synth.masknoise import MaskNoiseConfig, noisy_masks
+
+    shape = (cfg.height, cfg.width)
+    exact = [np.asarray(Image.open(io.BytesIO(png))) > 127 for _, png, _ in rendered]
+    shadows = [np.unpackbits(bits)[: shape[0] * shape[1]].reshape(shape).astype(bool)
+               for _, _, bits in rendered]
+    noisy, notes = noisy_masks(exact, shadows, MaskNoiseConfig(seed=cfg.seed))
+    return [_png(m) for m in noisy], notes
+
+
 def write_synthetic_capture(
     item: str, out: Path, cfg: SynthConfig | None = None, overwrite: bool = False,
     progress: bool = True,
@@ -322,17 +367,18 @@ def write_synthetic_capture(
     reported_world = np.einsum("ij,njk->nik", Tws, plan.reported_scene_poses)
     rendered = render_frames(plan.scene, plan.exact_scene_poses, cfg, progress=progress)
     names = [f"frame_{i:05d}" for i in range(len(rendered))]
+    capture_masks, noise_notes = _capture_masks(rendered, cfg)
 
     def fill(tmp: Path) -> None:
         cap_dir, gt_dir = tmp / "capture", tmp / "ground_truth"
         for d in (cap_dir / "images", gt_dir / "masks") + ((cap_dir / "masks",) if
                                                           cfg.masks_in_capture else ()):
             d.mkdir(parents=True)
-        for n, (jpg, png) in zip(names, rendered, strict=True):
+        for n, (jpg, png, _), given in zip(names, rendered, capture_masks, strict=True):
             (cap_dir / "images" / f"{n}.jpg").write_bytes(jpg)
             (gt_dir / "masks" / f"{n}.png").write_bytes(png)
             if cfg.masks_in_capture:
-                (cap_dir / "masks" / f"{n}.png").write_bytes(png)
+                (cap_dir / "masks" / f"{n}.png").write_bytes(given)
         meta = {"source": "volec synth", "world_up": [0.0, 1.0, 0.0]}
         intr = cfg.intrinsics
         write_transforms_json(
@@ -355,6 +401,8 @@ def write_synthetic_capture(
             "world_up": [0.0, 1.0, 0.0],
             "T_world_from_scene": Tws.tolist(),
             "plate_radius_m": plan.scene.plate_radius_m,
+            "setup": asdict(plan.scene.setup),
+            "mask_noise": dict(zip(names, noise_notes, strict=True)) if noise_notes else None,
             "ar_pose_error": _pose_errors(reported_world, exact_world),
             "config": cfg.recorded(),
             "code": synth_code(),

@@ -75,6 +75,9 @@ class Rendering:
     food_coverage: np.ndarray | None = None
     """(H, W) share of each pixel's area the food covers (None: one ray per pixel, the
     centre's label decides)."""
+    shadow: np.ndarray | None = None
+    """(H, W) pixels of other objects than the food where the light is mostly hidden (the
+    food's cast shadow among them)."""
 
     @property
     def food_mask(self) -> np.ndarray:
@@ -103,7 +106,8 @@ class Renderer:
         look = look or LOOKS["sharp"]
         u, v = np.meshgrid(np.arange(width, dtype=float), np.arange(height, dtype=float))
         pix = np.stack([u.ravel(), v.ravel()], axis=1)
-        rgb, label, depth = self._shade(K, T_scene_from_cam, pix, look, (height, width))
+        rgb, label, depth, shadow = self._shade(K, T_scene_from_cam, pix, look,
+                                                (height, width))
         rgb, label, depth = (rgb.reshape(height, width, 3), label.reshape(height, width),
                              depth.reshape(height, width))
         coverage = None
@@ -114,7 +118,8 @@ class Renderer:
             rgb = ndimage.gaussian_filter(rgb, (look.blur_sigma_px, look.blur_sigma_px, 0),
                                           mode="nearest")
         return Rendering(rgb=np.clip(rgb, 0.0, 1.0), label=label, depth_m=depth,
-                         food_coverage=coverage)
+                         food_coverage=coverage,
+                         shadow=shadow.reshape(height, width) & (label != FOOD))
 
     def _camera_rays(self, K: np.ndarray, T_scene_from_cam: np.ndarray, pix: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray]:
@@ -129,8 +134,9 @@ class Renderer:
 
     def _shade(self, K: np.ndarray, T_scene_from_cam: np.ndarray, pix: np.ndarray,
                look: LookConfig, grid: tuple[int, int] | None = None
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Linear RGB (N, 3), label (N,) and z-depth (N,) of one ray per pixel position.
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Linear RGB (N, 3), label (N,), z-depth (N,) and whether the light is mostly hidden
+        (N,) of one ray per pixel position.
         ``grid`` (H, W): ``pix`` is every pixel centre, row by row; else they are the n x n
         sub-pixel positions of some pixels, pixel by pixel."""
         origin, dirs = self._camera_rays(K, T_scene_from_cam, pix)
@@ -140,6 +146,7 @@ class Renderer:
         rgb = np.tile(BACKGROUND, (n, 1))
         label = np.full(n, -1, dtype=np.int8)
         depth = np.full(n, np.inf)
+        shadow = np.zeros(n, bool)
         if hit.any():
             points, normals = self._surface(tri[hit], origin, dirs[hit])
             lab = self.scene.face_label[tri[hit]]
@@ -149,11 +156,14 @@ class Renderer:
                 albedo[sel] = self.scene.colour(int(obj), points[sel], normals[sel])
             lit = self._light(points, normals, hit, look, grid)
             cos_sun = np.clip(np.einsum("ij,j->i", normals, SUN_DIRECTION), 0.0, None)
+            setup = self.scene.setup
             sky = SKY_STRENGTH * (0.75 + 0.25 * normals[:, 2])
-            rgb[hit] = albedo * (sky + SUN_STRENGTH * cos_sun * lit)[:, None]
+            rgb[hit] = setup.light * albedo * (sky + setup.sun * SUN_STRENGTH * cos_sun
+                                               * lit)[:, None]
             label[hit] = lab
             depth[hit] = np.einsum("ij,j->i", points - origin, T_scene_from_cam[:3, 2])
-        return rgb, label, depth
+            shadow[hit] = lit < 0.5
+        return rgb, label, depth, shadow
 
     def _supersample(self, K: np.ndarray, T_scene_from_cam: np.ndarray, rgb: np.ndarray,
                      label: np.ndarray, edges: np.ndarray, look: LookConfig
@@ -168,7 +178,7 @@ class Renderer:
         offsets = (np.arange(n) + 0.5) / n - 0.5
         du, dv = (a.ravel() for a in np.meshgrid(offsets, offsets))
         pix = np.stack([(cols[:, None] + du).ravel(), (rows[:, None] + dv).ravel()], axis=1)
-        sub_rgb, sub_label, _ = self._shade(K, T_scene_from_cam, pix, look)
+        sub_rgb, sub_label, _, _ = self._shade(K, T_scene_from_cam, pix, look)
         out = rgb.copy()
         out[rows, cols] = sub_rgb.reshape(len(rows), n * n, 3).mean(axis=1)
         coverage[rows, cols] = (sub_label.reshape(len(rows), n * n) == FOOD).mean(axis=1)
