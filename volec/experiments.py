@@ -63,16 +63,20 @@ class Scenario:
 
 def scenarios(quick: bool) -> dict[str, Scenario]:
     """The capture conditions: full orbit at the default 5 mm drift, a half orbit, 1 cm drift
-    (all with a phone's look), and the full orbit with the first benchmark's sharp look.
+    (all with a phone's look), the full orbit with the first benchmark's sharp look, and the
+    full orbit in a setup that makes segmentation hard (one per item, see
+    :data:`volec.synth.scene.HARD_SETUPS`).
     ``quick`` gives small captures for CI (20 frames over 120 degrees)."""
     if quick:
         small = SYNTH_PRESETS["default"].with_(n_frames=20, arc_deg=120.0)
-        return {"quick": Scenario("quick", small)}
+        return {"quick": Scenario("quick", small),
+                "quick_hard": Scenario("quick_hard", small.with_(setup="hard"))}
     return {
         "full_orbit": Scenario("full_orbit", SYNTH_PRESETS["default"]),
         "half_orbit": Scenario("half_orbit", SYNTH_PRESETS["half_orbit"]),
         "drift_1cm": Scenario("drift_1cm", SYNTH_PRESETS["drift_1cm"]),
         "full_orbit_sharp": Scenario("full_orbit_sharp", SYNTH_PRESETS["sharp"]),
+        "hard": Scenario("hard", SYNTH_PRESETS["default"].with_(setup="hard")),
     }
 
 
@@ -562,6 +566,193 @@ def volume_experiment(root: Path, items: list[str], scenario: Scenario,
     return pd.DataFrame([rows[item] for item in items])
 
 
+# ----------------------------------------------------------------------------- segmentation
+
+SEGMENT_CACHE = "segment_eval.json"
+
+
+def boundary_f_score(predicted: np.ndarray, exact: np.ndarray, tolerance_px: float = 2.0
+                     ) -> float:
+    """The boundary F-score of a mask: the harmonic mean of the share of its boundary pixels
+    within ``tolerance_px`` of the exact boundary (precision) and the share of the exact
+    boundary within that of its own (recall)."""
+    from scipy import ndimage
+
+    def edge(m: np.ndarray) -> np.ndarray:
+        return m & ~ndimage.binary_erosion(m)
+
+    a, b = edge(predicted), edge(exact)
+    if not a.any() or not b.any():
+        return float(a.any() == b.any())
+    near_b = ndimage.distance_transform_edt(~b) <= tolerance_px
+    near_a = ndimage.distance_transform_edt(~a) <= tolerance_px
+    precision, recall = (a & near_b).sum() / a.sum(), (b & near_a).sum() / b.sum()
+    return float(2 * precision * recall / max(precision + recall, 1e-12))
+
+
+def mask_iou(predicted: np.ndarray, exact: np.ndarray) -> float:
+    """Intersection over union of two masks (1 when both are empty)."""
+    union = np.logical_or(predicted, exact).sum()
+    return float(np.logical_and(predicted, exact).sum() / union) if union else 1.0
+
+
+def exact_masks(out: Path, capture: Any) -> list[np.ndarray]:
+    """The exact food masks of a synthetic capture (ground truth; for scoring only)."""
+    from PIL import Image
+
+    return [np.asarray(Image.open(out / "ground_truth" / "masks" / (Path(f.name).stem + ".png"))
+                       .convert("L")) > 127 for f in capture.frames]
+
+
+def noisy_mask_set(out: Path, capture: Any) -> Any:
+    """The masks a real segmenter might give for a synthetic capture (its
+    ``ground_truth/masks_noisy``, :mod:`volec.synth.masknoise`), as a MaskSet."""
+    from PIL import Image
+
+    from volec.segment import MaskSet
+
+    masks = tuple(np.asarray(Image.open(out / "ground_truth" / "masks_noisy"
+                                        / (Path(f.name).stem + ".png")).convert("L")) > 127
+                  for f in capture.frames)
+    return MaskSet(tuple(f.name for f in capture.frames), masks, "noisy",
+                   tuple(1.0 for _ in masks))
+
+
+def _volume_with_masks(out: Path, capture: Any, masks: Any, folder: str, cfg: EstimateConfig,
+                       model: Any) -> float:
+    """The default estimate's volume (completion on) with ``masks`` handed in, its stages in
+    ``ITEM/folder`` (the SfM stage copied from ``work``, where it is reused)."""
+    import shutil
+
+    from volec.estimate import estimate_from_stages, food_silhouettes
+
+    work = out / folder
+    if not (work / "sfm").exists() and (out / "work" / "sfm").exists():
+        shutil.copytree(out / "work" / "sfm", work / "sfm")
+    stages = run_stages(capture, work, cfg.sfm, cfg.dense, cfg.masking, stale="recompute",
+                        progress=False, masks=masks)
+    est = estimate_from_stages(capture, stages, model, cfg, food_silhouettes(capture, stages, cfg))
+    return est.food.volume_ml
+
+
+def segmentation_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
+                     volumes: bool, key: dict[str, Any]) -> dict[str, Any]:
+    """One item of :func:`segmentation_experiment`, computed and cached under ``key``."""
+    from volec.estimate import load_completion_model
+    from volec.pipeline import run_segment_stage
+    from volec.synth import load_truth
+
+    out = ensure_capture(root, item, scenario)
+
+    def run() -> dict[str, Any]:
+        capture = read_transforms_json(out / "capture")
+        sfm, _ = run_sfm_stage(capture, out / "work", cfg.sfm, stale="recompute")
+        start = time.perf_counter()
+        masks, _ = run_segment_stage(capture, sfm, out / "work", cfg.segment, stale="recompute",
+                                     progress=False)
+        seconds = time.perf_counter() - start
+        exact = exact_masks(out, capture)
+        iou = np.array([mask_iou(m, e) for m, e in zip(masks.masks, exact, strict=True)])
+        bf = np.array([boundary_f_score(m, e) for m, e in zip(masks.masks, exact, strict=True)])
+        noisy = noisy_mask_set(out, capture)
+        noisy_iou = [mask_iou(m, e) for m, e in zip(noisy.masks, exact, strict=True)]
+        worst = np.argsort(iou)[:3]
+        truth = load_truth(out)
+        row: dict[str, Any] = {
+            "item": item, "scenario": scenario.name, "setup": _setup_name(item, scenario),
+            "frames": len(capture), "gt_ml": float(truth["volume_ml"]),
+            "iou_median": float(np.median(iou)), "iou_p10": float(np.percentile(iou, 10)),
+            "iou_min": float(iou.min()), "bf_median": float(np.median(bf)),
+            "bf_min": float(bf.min()), "noisy_iou_median": float(np.median(noisy_iou)),
+            "segment_s": seconds, "frames_listed": len(masks.failed),
+            "worst_frames": [capture.frames[i].name for i in worst],
+            "worst_iou": [float(iou[i]) for i in worst]}
+        if volumes:
+            model = load_completion_model(cfg)
+            row["auto_ml"] = _volume_with_masks(out, capture, masks, "work-auto", cfg, model)
+            row["noisy_ml"] = _volume_with_masks(out, capture, noisy, "work-noisy", cfg, model)
+        return row
+
+    return cached_row(out / "work" / SEGMENT_CACHE, key, run)
+
+
+def _setup_name(item: str, scenario: Scenario) -> str:
+    from volec.synth.scene import hard_setup
+
+    return hard_setup(item)[0] if scenario.synth.setup == "hard" else scenario.synth.setup
+
+
+def segmentation_experiment(root: Path, items: list[str], scenario: Scenario,
+                            volumes: bool = True, cfg: EstimateConfig | None = None,
+                            workers: int = 1, progress: bool = True) -> pd.DataFrame:
+    """Automatic masks per item against the exact ones (IoU and boundary F-score per frame:
+    median, 10th percentile, worst), their time, the worst frames; with ``volumes``, the
+    default estimate's volume with the automatic masks and with the noisy masks a real
+    segmenter might give (:mod:`volec.synth.masknoise`). Cached per item in
+    ``segment_eval.json``, keyed like :func:`volume_experiment`."""
+    from volec.estimate import EstimateConfig, checkpoint_path
+
+    cfg = cfg or EstimateConfig()
+    key = row_key({**config_record(cfg), "volumes": volumes}, "volec.estimate",
+                  "volec.metrics", "volec.synth.generate",
+                  checkpoint=file_digest(checkpoint_path(cfg)))
+    rows = {item: _cached(root / f"{item}-{scenario.name}" / "work" / SEGMENT_CACHE, key)
+            for item in items}
+    todo = [item for item in items if rows[item] is None]
+    computed = map_items(segmentation_row, [(root, item, scenario, cfg, volumes, key)
+                                            for item in todo], todo, workers, progress)
+    rows.update(zip(todo, computed, strict=True))
+    return pd.DataFrame([rows[item] for item in items])
+
+
+def segmentation_table(raw: pd.DataFrame) -> pd.DataFrame:
+    """Per item: the setup, IoU (median, 10th percentile, worst) and boundary F-score of the
+    automatic masks, the noisy masks' median IoU, the segmentation's time; with volumes, the
+    volume error with automatic and with noisy masks (percent); then the medians and means."""
+    cols = ["item", "setup", "iou_median", "iou_p10", "iou_min", "bf_median",
+            "noisy_iou_median", "segment_s"]
+    table = raw[cols].copy()
+    for tag in ("auto", "noisy"):
+        if f"{tag}_ml" in raw:
+            table[f"{tag}_error_pct"] = 100 * (raw[f"{tag}_ml"] / raw["gt_ml"] - 1)
+    numeric = table.columns.drop(["item", "setup"])
+    median = table[numeric].median().to_frame().T
+    median.insert(0, "setup", "")
+    median.insert(0, "item", "median")
+    mean = table[numeric].abs().mean().to_frame().T
+    mean.insert(0, "setup", "")
+    mean.insert(0, "item", "mean abs")
+    return pd.concat([table, median, mean], ignore_index=True)
+
+
+def worst_frames(root: Path, raw: pd.DataFrame, scenario: Scenario, n: int = 6
+                 ) -> tuple[list[np.ndarray], list[str]]:
+    """The ``n`` frames with the lowest IoU over the items of ``raw``, as pictures (the
+    image, the automatic mask's outline green, the exact one's red) with titles."""
+    from scipy import ndimage
+
+    from volec.segment import load_masks
+
+    candidates = [(iou, item, name) for _, r in raw.iterrows()
+                  for name, iou in zip(r["worst_frames"], r["worst_iou"], strict=True)
+                  for item in [r["item"]]]
+    images, titles = [], []
+    for iou, item, name in sorted(candidates)[:n]:
+        out = ensure_capture(root, item, scenario)
+        capture = read_transforms_json(out / "capture")
+        index = [f.name for f in capture.frames].index(name)
+        masks = load_masks(out / "work")
+        from PIL import Image
+
+        rgb = np.asarray(Image.open(capture.frames[index].image_path).convert("RGB")).copy()
+        auto, exact = masks.mask(index), exact_masks(out, capture)[index]
+        rgb[exact & ~ndimage.binary_erosion(exact, iterations=2)] = (230, 30, 30)
+        rgb[auto & ~ndimage.binary_erosion(auto, iterations=2)] = (40, 220, 40)
+        images.append(rgb)
+        titles.append(f"{item} {Path(name).stem}: IoU {iou:.3f}")
+    return images, titles
+
+
 ATTRIBUTION_CACHE = "attribution_eval.json"
 
 #: The attribution experiment's variants, from the pipeline to exact depth.
@@ -704,11 +895,13 @@ def attribution_table(raw: pd.DataFrame) -> pd.DataFrame:
     return pd.concat([table, means], ignore_index=True)
 
 
-def volume_table(raw: pd.DataFrame) -> pd.DataFrame:
+def volume_table(raw: pd.DataFrame, masks: pd.DataFrame | None = None) -> pd.DataFrame:
     """The paper's Table I: per item the true volume, the estimate without completion (the
     VolE-style baseline) and with it, their absolute percentage errors and accuracy
-    (100 - APE), and whether volec trusted the estimate with completion (the default); then
-    the means (MAPE, mean accuracy, and the share of estimates trusted)."""
+    (100 - APE), and whether volec trusted the estimate with completion (the default); with
+    ``masks`` (:func:`segmentation_experiment` on the same items), the default estimate with
+    automatic masks and with noisy ones; then the means (MAPE, mean accuracy, and the share
+    of estimates trusted)."""
     table = pd.DataFrame({"item": raw["label"], "gt_ml": raw["gt_ml"]})
     for tag, name in (("no_completion", "without"), ("completion", "with")):
         ape = 100 * (raw[f"{tag}_ml"] - raw["gt_ml"]).abs() / raw["gt_ml"]
@@ -716,6 +909,12 @@ def volume_table(raw: pd.DataFrame) -> pd.DataFrame:
         table[f"{name}_ape_pct"] = ape
         table[f"{name}_accuracy_pct"] = 100 - ape
     table["with_trusted"] = raw["completion_trusted"].astype(float)
+    if masks is not None:
+        by_item = masks.set_index("item").reindex(raw["item"])
+        for tag in ("auto", "noisy"):
+            values = by_item[f"{tag}_ml"].to_numpy()
+            table[f"{tag}_masks_ml"] = values
+            table[f"{tag}_masks_ape_pct"] = 100 * np.abs(values - raw["gt_ml"]) / raw["gt_ml"]
     means = table.drop(columns="item").mean().to_frame().T
     means.insert(0, "item", "mean")
     return pd.concat([table, means], ignore_index=True)

@@ -15,6 +15,7 @@ results are recomputed instead. A stage that is recomputed makes every later sta
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import sys
@@ -22,6 +23,8 @@ import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
+
+import numpy as np
 
 from volec.capture import Capture
 from volec.dense import DenseConfig, DenseResult, load_dense, run_dense, save_dense
@@ -171,8 +174,13 @@ MaskSource = Literal["default", "given", "auto"]
 (``default``)."""
 
 
-def masks_source(capture: Capture, wanted: MaskSource) -> str:
-    """``given`` or ``auto``: what ``wanted`` means for ``capture``."""
+def masks_source(capture: Capture, wanted: MaskSource | MaskSet) -> str:
+    """``given``, ``auto`` or (masks handed in as a :class:`MaskSet`) ``handed``: what
+    ``wanted`` means for ``capture``."""
+    if isinstance(wanted, MaskSet):
+        if wanted.names != tuple(f.name for f in capture.frames):
+            raise VolecError("the masks handed in are not for this capture's frames")
+        return "handed"
     if wanted == "default":
         return "given" if capture.has_masks else "auto"
     if wanted == "given":
@@ -208,7 +216,12 @@ def masks_digest(masks: MaskSet) -> str:
     digests) or the digest of the segmentation's record."""
     if masks.source == "given":
         return "given"
-    return record_digest(masks.summary["record"])
+    if "record" in masks.summary:
+        return record_digest(masks.summary["record"])
+    h = hashlib.sha256()
+    for mask in masks.masks:  # masks handed in: their content
+        h.update(np.packbits(mask).tobytes())
+    return f"{masks.source}:{h.hexdigest()[:16]}"
 
 
 def wanted_provenance(identity: dict[str, Any], sfm_cfg: SfmConfig, segment_cfg: SegmentConfig,
@@ -239,7 +252,8 @@ def _masks_stage(capture: Capture, sfm: SfmResult, work_dir: Path, source: str,
                  cfg: SegmentConfig, wanted: dict[str, Any], reuse: bool, overwrite: bool,
                  stale: Stale, progress: bool) -> tuple[MaskSet, bool]:
     """(the food masks, whether they were reused): the capture's, or the segmentation's,
-    reused from ``work_dir`` when made from exactly this SfM result."""
+    reused from ``work_dir`` when made from exactly this SfM result (masks handed in are
+    dealt with by the caller)."""
     if source == "given":
         return given_masks(capture), True
     wanted = {**wanted, "upstream": {"sfm": record_digest(sfm.summary)}}
@@ -262,7 +276,8 @@ def _with_record(masks: MaskSet, record: dict[str, Any]) -> MaskSet:
 def run_stages(capture: Capture, work_dir: Path, sfm_cfg: SfmConfig | None = None,
                dense_cfg: DenseConfig | None = None, mask_cfg: MaskingConfig | None = None,
                overwrite: bool = False, stale: Stale = "refuse", progress: bool = True,
-               identity: dict[str, Any] | None = None, masks: MaskSource = "default",
+               identity: dict[str, Any] | None = None,
+               masks: MaskSource | MaskSet = "default",
                segment_cfg: SegmentConfig | None = None) -> StageResults:
     """SfM, the food masks (given or automatic), dense stereo and masking of ``capture`` in
     ``work_dir``, each reused when finished from exactly these inputs (see the module
@@ -273,7 +288,7 @@ def run_stages(capture: Capture, work_dir: Path, sfm_cfg: SfmConfig | None = Non
     work_dir = Path(work_dir)
     identity = identity or capture_identity(capture)
     wanted = wanted_provenance(identity, sfm_cfg, segment_cfg, dense_cfg, mask_cfg)
-    if source == "given":
+    if source != "auto":
         wanted.pop("segment")
     preflight(work_dir, wanted, overwrite, stale)
     seconds: dict[str, float] = {}
@@ -288,11 +303,14 @@ def run_stages(capture: Capture, work_dir: Path, sfm_cfg: SfmConfig | None = Non
         sfm = run_sfm(capture, work_dir, sfm_cfg, provenance=wanted["sfm"])
     seconds["sfm_s"] = round(time.perf_counter() - t, 2)
 
-    say(progress, "the capture's food masks" if source == "given" else "food segmentation")
+    say(progress, "food segmentation" if source == "auto" else "the food masks")
     t = time.perf_counter()
-    food_masks, was_reused = _masks_stage(capture, sfm, work_dir, source, segment_cfg,
-                                          wanted.get("segment", {}), "sfm" in reused,
-                                          overwrite, stale, progress)
+    if isinstance(masks, MaskSet):
+        food_masks, was_reused = masks, True
+    else:
+        food_masks, was_reused = _masks_stage(capture, sfm, work_dir, source, segment_cfg,
+                                              wanted.get("segment", {}), "sfm" in reused,
+                                              overwrite, stale, progress)
     if was_reused and "sfm" in reused:
         reused.append("masks")
     seconds["segment_s"] = round(time.perf_counter() - t, 2)

@@ -11,6 +11,7 @@ Out, written atomically (a folder appears complete or not at all)::
         food_mesh.ply                the exact watertight food mesh, world frame, metres
         transforms_exact.json        the exact poses (same layout)
         masks/frame_00000.png ...    exact food masks
+        masks_noisy/frame_00000.png  what a real segmenter might give (see ``mask_noise``)
         truth.json                   volume, seed, config, world-from-scene transform, AR errors
 
 The capture's world frame is the AR session's: gravity-aligned with +y up (as ARKit), its
@@ -334,12 +335,11 @@ def is_current(out: Path, cfg: SynthConfig) -> bool:
     return recorded.get("config") == cfg.recorded() and recorded.get("code") == synth_code()
 
 
-def _capture_masks(rendered: list[tuple[bytes, bytes, np.ndarray]], cfg: SynthConfig
-                   ) -> tuple[list[bytes], list[str]]:
-    """The mask PNGs the capture gets: the exact ones, or with ``mask_noise`` what a real
-    segmenter might give (:mod:`volec.synth.masknoise`), with what was done to each."""
-    if not cfg.mask_noise:
-        return [png for _, png, _ in rendered], []
+def _noisy_masks(rendered: list[tuple[bytes, bytes, np.ndarray]], cfg: SynthConfig
+                 ) -> tuple[list[bytes], list[str]]:
+    """What a real segmenter might give for the exact masks (:mod:`volec.synth.masknoise`),
+    as PNGs, with what was done to each: the capture's masks with ``mask_noise``, and
+    always ``ground_truth/masks_noisy`` for the experiments."""
     from volec.synth.masknoise import MaskNoiseConfig, noisy_masks
 
     shape = (cfg.height, cfg.width)
@@ -367,16 +367,19 @@ def write_synthetic_capture(
     reported_world = np.einsum("ij,njk->nik", Tws, plan.reported_scene_poses)
     rendered = render_frames(plan.scene, plan.exact_scene_poses, cfg, progress=progress)
     names = [f"frame_{i:05d}" for i in range(len(rendered))]
-    capture_masks, noise_notes = _capture_masks(rendered, cfg)
+    noisy_pngs, noise_notes = _noisy_masks(rendered, cfg)
+    capture_masks = noisy_pngs if cfg.mask_noise else [png for _, png, _ in rendered]
 
     def fill(tmp: Path) -> None:
         cap_dir, gt_dir = tmp / "capture", tmp / "ground_truth"
-        for d in (cap_dir / "images", gt_dir / "masks") + ((cap_dir / "masks",) if
-                                                          cfg.masks_in_capture else ()):
+        for d in (cap_dir / "images", gt_dir / "masks", gt_dir / "masks_noisy") + (
+                (cap_dir / "masks",) if cfg.masks_in_capture else ()):
             d.mkdir(parents=True)
-        for n, (jpg, png, _), given in zip(names, rendered, capture_masks, strict=True):
+        for n, (jpg, png, _), given, noisy in zip(names, rendered, capture_masks, noisy_pngs,
+                                                  strict=True):
             (cap_dir / "images" / f"{n}.jpg").write_bytes(jpg)
             (gt_dir / "masks" / f"{n}.png").write_bytes(png)
+            (gt_dir / "masks_noisy" / f"{n}.png").write_bytes(noisy)
             if cfg.masks_in_capture:
                 (cap_dir / "masks" / f"{n}.png").write_bytes(given)
         meta = {"source": "volec synth", "world_up": [0.0, 1.0, 0.0]}
@@ -402,7 +405,8 @@ def write_synthetic_capture(
             "T_world_from_scene": Tws.tolist(),
             "plate_radius_m": plan.scene.plate_radius_m,
             "setup": asdict(plan.scene.setup),
-            "mask_noise": dict(zip(names, noise_notes, strict=True)) if noise_notes else None,
+            "masks_in_capture": "noisy" if cfg.mask_noise else "exact",
+            "mask_noise": dict(zip(names, noise_notes, strict=True)),
             "ar_pose_error": _pose_errors(reported_world, exact_world),
             "config": cfg.recorded(),
             "code": synth_code(),
