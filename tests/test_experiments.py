@@ -55,3 +55,27 @@ def test_exact_depth_maps_fuse_onto_the_true_surface(quick_capture):
     food = np.abs(signed) < 0.005  # the plate and table are in the cloud too
     assert food.sum() > 1000
     assert abs(np.median(signed[food])) < 5e-5  # within 50 micrometres, no offset
+
+
+def test_mask_scores_against_analytic_discs():
+    import numpy as np
+    import pytest
+
+    from volec.experiments import boundary_f_score, mask_iou
+
+    yy, xx = np.mgrid[:100, :100]
+
+    def disc(cx: float, r: float = 20.0) -> np.ndarray:
+        return (yy - 50) ** 2 + (xx - cx) ** 2 <= r**2
+
+    assert mask_iou(disc(50), disc(50)) == 1.0 and boundary_f_score(disc(50), disc(50)) == 1.0
+    # shifted by 1 px: every boundary pixel within the 2 px tolerance
+    assert boundary_f_score(disc(51), disc(50)) == 1.0
+    # two discs of radius r whose centres are d apart: the lens area over the union
+    r, d = 20.0, 6.0
+    lens = 2 * r**2 * np.arccos(d / (2 * r)) - d / 2 * np.sqrt(4 * r**2 - d**2)
+    assert mask_iou(disc(53), disc(47)) == pytest.approx(lens / (2 * np.pi * r**2 - lens),
+                                                         abs=0.01)
+    assert boundary_f_score(disc(56), disc(50)) < 0.6
+    empty = np.zeros((100, 100), bool)
+    assert mask_iou(empty, empty) == 1.0 and boundary_f_score(empty, disc(50)) == 0.0

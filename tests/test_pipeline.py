@@ -7,6 +7,7 @@ import shutil
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from tests.files import snapshot
 from volec.capture import read_transforms_json
@@ -86,3 +87,19 @@ def test_volec_dense_with_given_masks_refuses_a_capture_without_masks(tmp_path, 
                  "--masks", "given"]) == 2
     assert "no food mask" in capsys.readouterr().err
     assert not (tmp_path / "work").exists()
+
+
+def test_masks_handed_in_are_named_by_their_content(quick_capture):
+    from volec.pipeline import masks_digest, masks_source
+    from volec.segment import MaskSet, given_masks
+
+    capture = read_transforms_json(quick_capture / "capture")
+    given = given_masks(capture)
+    assert masks_source(capture, "default") == "given" and masks_digest(given) == "given"
+    handed = MaskSet(given.names, given.masks, "noisy")
+    assert masks_source(capture, handed) == "handed"
+    changed = MaskSet(given.names, (~given.masks[0],) + given.masks[1:], "noisy")
+    assert masks_digest(handed) != masks_digest(changed)
+    assert masks_digest(handed) == masks_digest(MaskSet(given.names, given.masks, "noisy"))
+    with pytest.raises(Exception, match="not for this capture"):
+        masks_source(capture, MaskSet(given.names[:-1], given.masks[:-1], "noisy"))
