@@ -101,3 +101,24 @@ def test_volec_estimate_refuses_bad_input(small_capture, tmp_path, capsys):
     assert "inside the capture" in capsys.readouterr().err
     assert snapshot(small_capture) == before
     assert not (tmp_path / "o").exists()
+
+
+def test_volec_estimate_segments_the_food_itself(small_capture, small_result, tmp_path, capsys):
+    from PIL import Image
+
+    out = tmp_path / "estimate"
+    shutil.copytree(small_capture / "work" / "sfm", out / "sfm")  # SfM is reused
+    assert main(["estimate", str(small_capture / "capture"), "--out", str(out), "--quiet",
+                 "--masks", "auto", "--no-completion"]) == 0
+    result = json.loads((out / "result.json").read_text())
+    assert result["masks"]["source"] == "auto"
+    record = json.loads((out / "segment.json").read_text())
+    ious = []
+    for name, relative in zip(record["frames"], record["files"], strict=True):
+        auto = np.asarray(Image.open(out / relative)) > 127
+        exact = np.asarray(Image.open(small_capture / "ground_truth" / "masks"
+                                      / f"{name.split('/')[-1][:-4]}.png")) > 127
+        ious.append((auto & exact).sum() / (auto | exact).sum())
+    assert np.median(ious) > 0.95
+    truth = load_ground_truth_mesh(small_capture).volume * 1e6
+    assert 0.7 * truth < result["volume_ml"] < 1.5 * truth

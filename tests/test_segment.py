@@ -59,14 +59,13 @@ def test_the_item_on_the_table_is_found_and_a_second_object_left_out():
 @pytest.mark.parametrize("objects, words", [
     ([], "nothing stands on the plate"),
     ([((0.15, 0.1, 0.03), 0.03)], "no object at the point the cameras look at"),
-    ([((-0.02, 0.0, 0.015), 0.015), ((0.02, 0.0, 0.015), 0.015)], "several separate objects"),
+    # two balls 3.6 cm apart, as near as each other to where the cameras look
+    ([((-0.03, 0.0, 0.012), 0.012), ((0.03, 0.0, 0.012), 0.012)], "several separate objects"),
 ])
 def test_what_cannot_be_the_food_is_a_clear_error(objects, words):
     points = _scene_points(np.random.default_rng(1), objects)
-    # the two small balls just touch: far enough apart for two clusters only with a fine eps
-    cfg = SegmentConfig(cluster_eps_m=0.004)
     with pytest.raises(SegmentationError, match=words):
-        find_item(_ring_cameras(), points, UP, cfg)
+        find_item(_ring_cameras(), points, UP, SegmentConfig())
 
 
 def test_cameras_that_do_not_look_down_on_a_plane_are_an_error():

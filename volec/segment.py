@@ -71,6 +71,9 @@ class SegmentConfig:
     max_fixation_gap: float = 0.25
     """The item's nearest point lies at most this far from the fixation point, as a share of
     the median camera distance (people aim roughly at the food)."""
+    merge_gap_m: float = 0.02
+    """Clusters this close to the item are part of it (a sparsely textured item falls apart
+    into several); a second object is farther."""
     ambiguous_gap_m: float = 0.01
     """A second object at most this much farther from the fixation point than the nearest,
     and at least half its size, makes the choice ambiguous: an error."""
@@ -264,16 +267,39 @@ def _item_cluster(local: np.ndarray, height: np.ndarray, fixation: np.ndarray,
         raise SegmentationError(
             f"no object at the point the cameras look at (the nearest is {gaps[best] * 1000:.0f}"
             " mm away): aim the orbit at the food (or give masks)")
-    if len(order) > 1:
-        second = int(order[1])
-        if (gaps[second] <= cfg.ambiguous_gap_m + gaps[best]
-                and len(clusters[second]) >= 0.5 * len(clusters[best])):
+    item, rest = _merge_near(local, clusters[best],
+                             [clusters[int(k)] for k in order[1:]], cfg.merge_gap_m)
+    if rest:
+        second = min(rest, key=lambda c: float(np.linalg.norm(local[c] - fixation, axis=1)
+                                               .min()))
+        gap = float(np.linalg.norm(local[second] - fixation, axis=1).min())
+        if gap <= cfg.ambiguous_gap_m + gaps[best] and len(second) >= 0.5 * len(item):
             raise SegmentationError(
                 "several separate objects stand where the cameras look (clusters of "
-                f"{len(clusters[best])} and {len(clusters[second])} points, "
-                f"{gaps[best] * 1000:.0f} and {gaps[second] * 1000:.0f} mm from it): film one "
-                "item at a time, or give masks")
-    return clusters[best], len(clusters) - 1
+                f"{len(item)} and {len(second)} points, {gaps[best] * 1000:.0f} and "
+                f"{gap * 1000:.0f} mm from it): film one item at a time, or give masks")
+    return item, len(rest)
+
+
+def _merge_near(points: np.ndarray, item: np.ndarray, others: list[np.ndarray],
+                gap_m: float) -> tuple[np.ndarray, list[np.ndarray]]:
+    """``item`` (indices into ``points``) with every cluster of ``others`` that comes within
+    ``gap_m`` of it (in turn, so a chain of fragments joins: an item with sparse texture falls
+    apart into several clusters); and the clusters left apart."""
+    from scipy.spatial import cKDTree
+
+    rest = list(others)
+    merged = True
+    while merged and rest:
+        merged = False
+        tree = cKDTree(points[item])
+        for k, cluster in enumerate(rest):
+            if tree.query(points[cluster], distance_upper_bound=gap_m)[0].min() <= gap_m:
+                item = np.concatenate([item, cluster])
+                rest.pop(k)
+                merged = True
+                break
+    return item, rest
 
 
 def _footprint_distance(points: np.ndarray, item: np.ndarray, normal: np.ndarray
