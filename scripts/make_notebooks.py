@@ -470,8 +470,11 @@ write([
     md("## Where the surface lies\n\nSigned distances to the true surface, in mm (+ outside, "
        "- inside): median, 10th and 90th percentile of the masked cloud's points and of the "
        "final mesh (area-uniform samples), and the volume the mesh's offset implies (mean "
-       "signed distance times area, in percent of the true volume) beside the volume error. "
-       "A systematic offset of a fraction of a millimetre is a few percent of volume."),
+       "signed distance times area, in percent of the true volume) beside the volume error; "
+       "then how far the poses misplaced the mesh and its signed distances once rigidly "
+       "aligned to the truth (the shape's own offset; the misplacement moves the whole mesh "
+       "and does not change its volume). A systematic offset of a fraction of a millimetre is "
+       "a few percent of volume. The figure shows the aligned meshes."),
     code(
         "offsets = surface_offset_table(raw)\n"
         'write_table(offsets, figures_dir() / "surface_offset", float_digits=3)\n'

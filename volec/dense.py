@@ -108,11 +108,16 @@ class DenseConfig:
     """... and within this fraction of the depth."""
     geometric_min_views: int = 2
     """Neighbour depth maps that must agree for a depth to be kept."""
-    min_view_cosine: float = 0.0
+    min_view_cosine: float = 0.5
     """A depth whose surface the reference camera sees more obliquely than this (the cosine
-    between the surface normal and the direction to the camera) is dropped: near an occluding
-    contour a window mixes the surface with what lies behind it, and grazing depths come out
-    too far. 0 keeps all."""
+    between the surface normal and the direction to the camera) is dropped: a window on a
+    grazing, curving surface matches it too far (benchmark banana, exact poses, phone look:
+    raw depths 1.2 mm too far, normal to the surface, under cos 0.5; 0.4 mm at 0.5-0.7; 0.04
+    mm above 0.85), and on an orbit the same surface is seen face-on from other frames. On
+    five phone-look items (SfM poses) 0.5 moved the mesh's aligned median signed distance
+    towards zero on four (banana -0.25 to -0.15 mm, pear -0.19 to -0.09, capsicum -0.12 to
+    -0.01) and the mean volume error from 2.5 to 2.2 %; on the croissant, whose grazing sides
+    bound the gap under it, the overestimate grew (+2.1 to +3.7 %). 0 keeps all."""
     fusion_voxel_m: float = 0.0005
     """Voxel size of the final merge, metres (0 keeps every point)."""
     planes_per_chunk: int = 16

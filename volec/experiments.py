@@ -945,16 +945,20 @@ def surface_offset_table(raw: pd.DataFrame, tag: str = "completion") -> pd.DataF
 
 def signed_surfaces(root: Path, items: list[str], scenario: Scenario, tag: str = "completion"
                     ) -> dict[str, tuple[Any, np.ndarray]]:
-    """Per item of :func:`volume_experiment`, its final mesh (variant ``tag``) and the signed
-    distance of each of its vertices to the true surface (metres), for
-    :func:`volec.viz.signed_distance_figure`."""
+    """Per item of :func:`volume_experiment`, its final mesh (variant ``tag``) rigidly aligned
+    to the truth (taking away the poses' misplacement, which moves the whole mesh and hides the
+    shape's own pattern) and the signed distance of each of its vertices to the true surface
+    (metres), for :func:`volec.viz.signed_distance_figure`."""
     import trimesh
+
+    from volec.metrics import rigid_alignment
 
     out = {}
     for item in items:
         folder = ensure_capture(root, item, scenario)
         mesh = trimesh.load(folder / "work" / f"mesh_{tag}.ply")
         truth = load_ground_truth_mesh(folder)
+        mesh.apply_transform(rigid_alignment(sample_surface(mesh, 20000, seed=0), truth))
         out[item] = (mesh, signed_distances_to_surface(np.asarray(mesh.vertices), truth))
     return out
 

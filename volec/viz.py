@@ -156,6 +156,8 @@ def signed_distance_figure(surfaces: dict[str, tuple[trimesh.Trimesh, np.ndarray
             where = "above" if elevation > 0 else "below"
             axes[row, col].set_title(f"{name}, from {where}\nmedian "
                                      f"{1000 * np.median(signed_m):+.2f} mm", fontsize=9)
+    fig.suptitle("signed distance of each mesh to the true surface, after a rigid alignment",
+                 fontsize=10)
     mappable = matplotlib.cm.ScalarMappable(
         norm=matplotlib.colors.Normalize(-limit_mm, limit_mm), cmap="RdBu_r")
     fig.colorbar(mappable, ax=axes, shrink=0.6, label="signed distance to the true surface, "
