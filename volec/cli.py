@@ -215,6 +215,12 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
     return EXIT_UNTRUSTED if args.strict and not result["trusted"] else 0
 
 
+def _add_masks_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--masks", default="default", choices=["default", "given", "auto"],
+                        help="the capture's food masks (given), automatic ones (auto), or the "
+                        "capture's when every frame has one and automatic otherwise (default)")
+
+
 def _add_capture_options(parser: argparse.ArgumentParser) -> None:
     """The options of every command that reads a capture."""
     parser.add_argument("--skip-missing", action="store_true",
@@ -296,9 +302,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="dense stereo preset")
     dense.add_argument("--mask-preset", default="default", choices=["default", "tolerant"],
                        help="masking preset (tolerant: 90%% of views, masks grown 3 px)")
-    dense.add_argument("--masks", default="default", choices=["default", "given", "auto"],
-                       help="the capture's food masks (given), automatic ones (auto), or the "
-                       "capture's when every frame has one (default)")
+    _add_masks_option(dense)
     dense.add_argument("--sfm-preset", default="default",
                        choices=["default", "exhaustive", "colmap_sift"])
     _add_capture_options(dense)
@@ -357,10 +361,7 @@ def build_parser() -> argparse.ArgumentParser:
     estimate.add_argument("--mask-preset", choices=["default", "tolerant"],
                           help="masking preset (tolerant: for imperfect masks, 90%% of views, "
                           "masks grown 3 px)")
-    estimate.add_argument("--masks", default="default", choices=["default", "given", "auto"],
-                          help="the capture's food masks (given), automatic ones (auto), or "
-                          "the capture's when every frame has one and automatic otherwise "
-                          "(default)")
+    _add_masks_option(estimate)
     estimate.add_argument("--strict", action="store_true",
                           help=f"exit with status {EXIT_UNTRUSTED} when the estimate is not "
                           "trusted (result.json says why)")

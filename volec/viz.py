@@ -99,6 +99,12 @@ def render_geometry(
         faces = np.c_[np.full(len(geometry.faces), 3), geometry.faces].ravel()
         plotter.add_mesh(pv.PolyData(np.asarray(geometry.vertices), faces), color="#d9b38c",
                          smooth_shading=True)
+    return _screenshot(plotter, eye, target, up)
+
+
+def _screenshot(plotter, eye: np.ndarray, target: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """The picture (H, W, 3 uint8) of a pyvista plotter's scene seen from ``eye`` towards
+    ``target``; the plotter is closed."""
     plotter.camera.position = tuple(np.asarray(eye, float))
     plotter.camera.focal_point = tuple(np.asarray(target, float))
     plotter.camera.up = tuple(np.asarray(up, float))
@@ -123,13 +129,7 @@ def render_scalar_mesh(mesh: trimesh.Trimesh, values: np.ndarray, eye: np.ndarra
     data["value"] = np.asarray(values, float)
     plotter.add_mesh(data, scalars="value", cmap=cmap, clim=(-limit, limit),
                      smooth_shading=True, show_scalar_bar=False)
-    plotter.camera.position = tuple(np.asarray(eye, float))
-    plotter.camera.focal_point = tuple(np.asarray(target, float))
-    plotter.camera.up = tuple(np.asarray(up, float))
-    plotter.camera.view_angle = 30.0
-    image = plotter.screenshot(return_img=True)
-    plotter.close()
-    return np.asarray(image)
+    return _screenshot(plotter, eye, target, up)
 
 
 def signed_distance_figure(surfaces: dict[str, tuple[trimesh.Trimesh, np.ndarray]],
