@@ -45,7 +45,7 @@ def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys
     assert result["mesh"]["silhouette_views"] == 16
     assert 0.0 <= result["mesh"]["carved_fraction"] < 0.25
     for name in ("scene.ply", "food_masked.ply", "food_completed.ply", "report.md",
-                 "report/stages_above.png"):
+                 "report/stages_above.png", "report/masks.png"):
         assert (out / name).stat().st_size > 0
     # the mesh a standard tool opens is closed and holds the volume reported
     mesh = trimesh.load(out / "mesh.ply")

@@ -69,7 +69,7 @@ from volec.pipeline import (
 from volec.pointcloud import PointCloud, write_ply
 from volec.provenance import capture_identity, file_digest, json_data, stage_provenance
 from volec.scale import ScaleCheck, ScaleConfig, require_metric
-from volec.segment import SegmentConfig, given_masks
+from volec.segment import MaskSet, SegmentConfig, given_masks
 from volec.sfm import SfmConfig
 from volec.trust import Reason, TrustConfig, TrustFacts, assess
 from volec.volume import volume_ml
@@ -316,6 +316,22 @@ def report_pictures(result: FoodMesh, up: np.ndarray, folder: Path, masked: Poin
     return paths
 
 
+def masks_picture(capture: Capture, masks: MaskSet, folder: Path, frames: int = 6) -> Path:
+    """A strip of ``frames`` frames, evenly spread, with their food masks' outlines."""
+    from PIL import Image
+
+    from volec.viz import mask_outline_strip, save_figure
+
+    chosen = np.round(np.linspace(0, len(capture) - 1, min(frames, len(capture)))).astype(int)
+    images = []
+    for i in chosen:
+        with Image.open(capture.frames[i].image_path) as im:
+            images.append(np.asarray(im.convert("RGB")))
+    titles = [f"{Path(capture.frames[i].name).stem} ({masks.source})" for i in chosen]
+    fig = mask_outline_strip(images, [masks.mask(int(i)) for i in chosen], titles)
+    return save_figure(fig, folder / "masks.png")
+
+
 def report_markdown(result: dict[str, Any], pictures: dict[str, Path], out_dir: Path) -> str:
     """The human-readable report of an estimate."""
     trust = ("**trusted**" if result["trusted"] else
@@ -329,6 +345,7 @@ def report_markdown(result: dict[str, Any], pictures: dict[str, Path], out_dir: 
         f"- capture: `{result['capture']}`",
         f"- frames used: {result['frames']['registered']} of {result['frames']['total']}",
         f"- scale: {result['scale']['source']}",
+        f"- food masks: {result['masks']['source']}",
         f"- mesh: {result['mesh']['faces']} faces, watertight, `mesh.ply` / `mesh.glb`",
         f"- support plane: {'found' if result['support_plane'] else 'not found'}",
         f"- volec {result['volec_version']}",
@@ -347,7 +364,9 @@ def report_markdown(result: dict[str, Any], pictures: dict[str, Path], out_dir: 
         "",
     ]
     for name, path in pictures.items():
-        lines += [f"Seen from {name}:", "", f"![{name}]({path.relative_to(out_dir)})", ""]
+        caption = {"masks": "The frames, with the food masks' outlines"}.get(
+            name, f"Seen from {name}")
+        lines += [f"{caption}:", "", f"![{name}]({path.relative_to(out_dir)})", ""]
     return "\n".join(lines)
 
 
@@ -397,7 +416,8 @@ def result_provenance(identity: dict[str, Any], cfg: EstimateConfig,
     return stage_provenance(identity, cfg, upstream, MODULES)
 
 
-def write_outputs(out_dir: Path, est: Estimate, masked: PointCloud) -> dict[str, str]:
+def write_outputs(out_dir: Path, est: Estimate, capture: Capture, stages: StageResults
+                  ) -> dict[str, str]:
     """The clouds, meshes and report pictures of an estimate in ``out_dir``; returns the file
     names that ``result.json`` lists."""
     food = est.food
@@ -408,7 +428,8 @@ def write_outputs(out_dir: Path, est: Estimate, masked: PointCloud) -> dict[str,
         files["food_completed"] = "food_completed.ply"
     write_bytes_atomic(out_dir / "mesh.ply", food.mesh.mesh.export(file_type="ply"))
     write_bytes_atomic(out_dir / "mesh.glb", food.mesh.mesh.export(file_type="glb"))
-    pictures = report_pictures(food, est.view_up, out_dir / "report", masked)
+    pictures = report_pictures(food, est.view_up, out_dir / "report", stages.masked.cloud)
+    pictures["masks"] = masks_picture(capture, stages.masks, out_dir / "report")
     files.update({f"picture_{k}": str(p.relative_to(out_dir)) for k, p in pictures.items()})
     return files
 
@@ -463,7 +484,7 @@ def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = N
         seconds.update(est.food.seconds)
         say(progress, "writing the clouds, the mesh and the report")
         t = time.perf_counter()
-        files = write_outputs(out_dir, est, stages.masked.cloud)
+        files = write_outputs(out_dir, est, capture, stages)
         seconds["report_s"] = round(time.perf_counter() - t, 2)
         seconds["total_s"] = round(time.perf_counter() - start, 2)
         record = estimate_record(capture, stages, est, cfg, scale, seconds)

@@ -23,6 +23,20 @@ from volec.io import write_bytes_atomic
 from volec.pointcloud import PointCloud
 
 
+def mask_outline_strip(images: Sequence[np.ndarray], masks: Sequence[np.ndarray],
+                       titles: Sequence[str], colour: tuple[int, int, int] = (40, 220, 40),
+                       width_px: int = 2) -> Figure:
+    """A strip of frames with their food masks' outlines drawn on them."""
+    from scipy import ndimage
+
+    drawn = []
+    for image, mask in zip(images, masks, strict=True):
+        out = np.asarray(image).copy()
+        out[mask & ~ndimage.binary_erosion(mask, iterations=width_px)] = colour
+        drawn.append(out)
+    return image_grid(drawn, titles, ncols=len(drawn), size_in=2.4)
+
+
 def image_grid(
     images: Sequence[np.ndarray], titles: Sequence[str], ncols: int = 7, size_in: float = 2.2
 ) -> Figure:
