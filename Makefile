@@ -10,7 +10,7 @@ NOTEBOOKS := $(sort $(wildcard notebooks/[0-9][0-9]_*.ipynb))
 export VTK_DEFAULT_OPENGL_WINDOW ?= vtkEGLRenderWindow
 export MPLBACKEND ?= Agg
 
-.PHONY: setup test test-all lint paper paper-quick data retrain clean
+.PHONY: setup test test-all lint paper paper-quick notebooks data retrain clean
 
 setup: $(STAMP)
 
@@ -48,6 +48,11 @@ paper: setup
 
 paper-quick:
 	$(MAKE) paper QUICK=1
+
+# The notebooks' reviewed sources are notebooks/NN_name.py (jupytext, percent format); this
+# brings each paired .ipynb up to date with its .py (tests/test_notebooks.py checks they agree).
+notebooks: setup
+	$(VENV)/bin/jupytext --sync notebooks/[0-9][0-9]_*.py
 
 # The 21-item synthetic benchmark captures (data/benchmark/ITEM/{capture,ground_truth}).
 data: setup

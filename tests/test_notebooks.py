@@ -30,6 +30,22 @@ def test_notebook_is_thin_and_committed_without_outputs(path):
         assert not defs, f"{path.name}: move definitions into volec"
 
 
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+def test_notebook_agrees_with_its_reviewed_source(path):
+    """Each notebook has a jupytext twin, notebooks/NN_name.py, that is the source people
+    edit and review; `make notebooks` brings the .ipynb up to date with it."""
+    jupytext = pytest.importorskip("jupytext")
+    source = path.with_suffix(".py")
+    assert source.exists(), f"{path.name} has no paired {source.name}"
+
+    def cells(nb) -> list[tuple[str, str, list[str]]]:
+        return [(c.cell_type, c.source.strip(), sorted(c.metadata.get("tags", [])))
+                for c in nb.cells]
+
+    assert cells(jupytext.read(source)) == cells(jupytext.read(path)), \
+        f"{path.name} differs from {source.name}: run `make notebooks`"
+
+
 @pytest.fixture(scope="session")
 def notebook_data(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """One data folder for every notebook of the session: like `make paper`, a later notebook
