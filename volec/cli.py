@@ -215,6 +215,21 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
     return EXIT_UNTRUSTED if args.strict and not result["trusted"] else 0
 
 
+def _cmd_batch(args: argparse.Namespace) -> int:
+    from volec.batch import TABLE, BatchConfig, run_batch
+
+    cfg = BatchConfig(preset=args.preset, masks=args.masks, use_completion=not args.no_completion,
+                      workers=args.workers, threads_per_worker=args.threads_per_worker,
+                      scheduler=args.scheduler or "")
+    table = run_batch(Path(args.captures), Path(args.out), cfg, progress=not args.quiet)
+    done = table[table["status"] == "done"]
+    print(f"{len(done)} of {len(table)} captures estimated ({int(done['trusted'].sum())} "
+          f"trusted); table: {Path(args.out) / TABLE}")
+    for _, row in table[table["status"] != "done"].iterrows():
+        print(f"failed: {row['capture']}: {row['error']}")
+    return 0 if len(done) == len(table) else EXIT_UNTRUSTED
+
+
 def _add_masks_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--masks", default="default", choices=["default", "given", "auto"],
                         help="the capture's food masks (given), automatic ones (auto), or the "
@@ -325,6 +340,30 @@ def build_parser() -> argparse.ArgumentParser:
     seg.add_argument("--quiet", action="store_true", help="no progress bars")
     _add_capture_options(seg)
     seg.set_defaults(func=_cmd_segment)
+
+    batch = sub.add_parser(
+        "batch",
+        help="volec estimate over every capture in a folder, on Dask, with one table",
+        description="Run `volec estimate` on every capture (subfolder) of CAPTURES on a local "
+        "Dask cluster (one capture per worker, threads limited per worker) or an existing one "
+        "(--scheduler). Writes OUT/CAPTURE/ (each capture's result folder) and OUT/batch.csv "
+        "(capture, volume, trusted, reasons, warnings, seconds, error). A capture that fails is "
+        "recorded and the others go on; a re-run skips the finished ones. Exits with 3 when a "
+        "capture failed.",
+    )
+    batch.add_argument("captures", help="folder of captures")
+    batch.add_argument("--out", required=True, type=Path, help="output folder")
+    batch.add_argument("--preset", default="default",
+                       choices=["default", "fast", "tolerant_masks"])
+    _add_masks_option(batch)
+    batch.add_argument("--no-completion", action="store_true")
+    batch.add_argument("--workers", type=int, default=0,
+                       help="local worker processes (default: half the cores)")
+    batch.add_argument("--threads-per-worker", type=int, default=0,
+                       help="threads each worker may use (default: the cores shared out)")
+    batch.add_argument("--scheduler", help="address of an existing Dask scheduler")
+    batch.add_argument("--quiet", action="store_true", help="no progress bar")
+    batch.set_defaults(func=_cmd_batch)
 
     complete = sub.add_parser(
         "complete",

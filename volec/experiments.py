@@ -424,24 +424,25 @@ def completion_examples(checkpoint: Path, names: list[str], quick: bool
 # ----------------------------------------------------------------------------- volume
 
 
-def _limit_threads(threads: int) -> None:
-    """Worker initializer: each of the parallel workers uses ``threads`` cores."""
-    import torch
+def _limited(function: Callable[..., dict[str, Any]], job: tuple, threads: int
+             ) -> dict[str, Any]:
+    """``function(*job)`` in a worker whose libraries use at most ``threads`` threads."""
+    from volec.batch import limit_threads
 
-    torch.set_num_threads(threads)
+    limit_threads(threads)
+    return function(*job)
 
 
 def map_items(function: Callable[..., dict[str, Any]], jobs: list[tuple], labels: list[str],
               workers: int = 1, progress: bool = True) -> list[dict[str, Any]]:
-    """``[function(*job) for job in jobs]``, with ``workers`` processes when above 1.
+    """``[function(*job) for job in jobs]``, on a local Dask cluster of ``workers`` processes
+    when above 1 (the mechanism of ``volec batch``).
 
     Most stages use one or two cores for much of their time (rendering, OpenCV SIFT,
     incremental mapping), so on a 2-core machine two items at once finish sooner than one
-    after the other. Workers are spawned (not forked: torch, open3d and COLMAP hold thread
-    pools that a fork would copy half-initialised), so ``function`` must be importable,
-    ``jobs`` picklable, and a script that calls this with ``workers > 1`` needs the
-    ``if __name__ == "__main__":`` guard (notebooks do not). Results come back in the order
-    of ``jobs``.
+    after the other. ``function`` must be importable and ``jobs`` picklable; a script that
+    calls this with ``workers > 1`` needs the ``if __name__ == "__main__":`` guard (notebooks
+    do not). Results come back in the order of ``jobs``.
     """
     if workers <= 1 or len(jobs) <= 1:
         rows = []
@@ -450,20 +451,26 @@ def map_items(function: Callable[..., dict[str, Any]], jobs: list[tuple], labels
                 print(f"[{n + 1}/{len(jobs)}] {label}", flush=True)
             rows.append(function(*job))
         return rows
-    import multiprocessing
     import os
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    from dask.distributed import as_completed
+
+    from volec.batch import local_cluster
 
     threads = max(1, (os.cpu_count() or 1) // workers)
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
-                             initializer=_limit_threads, initargs=(threads,)) as pool:
-        futures = {pool.submit(function, *job): n for n, job in enumerate(jobs)}
+    client, cluster = local_cluster(workers)
+    try:
+        futures = {client.submit(_limited, function, job, threads, pure=False): n
+                   for n, job in enumerate(jobs)}
         rows: list[dict[str, Any] | None] = [None] * len(jobs)
         for done, future in enumerate(as_completed(futures), start=1):
             n = futures[future]
             rows[n] = future.result()
             if progress:
                 print(f"[{done}/{len(jobs)}] {labels[n]} done", flush=True)
+    finally:
+        client.close()
+        cluster.close()
     return rows  # type: ignore[return-value]
 
 

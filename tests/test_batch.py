@@ -1,0 +1,54 @@
+"""volec batch: two captures on a local Dask cluster, one failing on purpose."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pandas as pd
+
+from tests.files import snapshot
+from volec.cli import main
+
+
+def test_a_batch_estimates_each_capture_records_a_failure_and_skips_finished_work(
+        small_capture, small_result, tmp_path, capsys):
+    captures = tmp_path / "captures"
+    shutil.copytree(small_capture / "capture", captures / "cake")
+    broken = captures / "broken"
+    shutil.copytree(small_capture / "capture", broken)
+    (broken / "transforms.json").write_text("{frames: [")
+    out = tmp_path / "out"
+    shutil.copytree(small_capture / "work" / "sfm", out / "cake" / "sfm")  # SfM is reused
+    before = snapshot(captures)
+
+    assert main(["batch", str(captures), "--out", str(out), "--workers", "2", "--quiet",
+                 "--no-completion"]) == 3  # one capture failed
+    printed = capsys.readouterr().out
+    assert snapshot(captures) == before  # the captures are only read
+    table = pd.read_csv(out / "batch.csv").set_index("capture")
+    assert list(table.index) == ["broken", "cake"]
+    assert table.loc["broken", "status"] == "failed"
+    assert "transforms.json: not valid JSON" in table.loc["broken", "error"]
+    assert "failed: broken" in printed
+    cake = table.loc["cake"]
+    result = json.loads((out / "cake" / "result.json").read_text())
+    assert cake["status"] == "done" and cake["volume_ml"] == result["volume_ml"]
+    assert not cake["trusted"] and "narrow_orbit" in cake["reasons"]  # 16 frames over 100 deg
+
+    # a second run finds the cake finished and writes nothing into its folder
+    finished = snapshot(out / "cake")
+    assert main(["batch", str(captures), "--out", str(out), "--workers", "1", "--quiet",
+                 "--no-completion"]) == 3
+    assert snapshot(out / "cake") == finished
+    again = pd.read_csv(out / "batch.csv").set_index("capture")
+    assert again.loc["cake", "volume_ml"] == cake["volume_ml"]
+    assert again.loc["cake", "seconds"] < cake["seconds"]
+
+
+def test_a_batch_into_a_capture_is_refused(small_capture, tmp_path, capsys):
+    captures = tmp_path / "captures"
+    shutil.copytree(small_capture / "capture", captures / "cake")
+    assert main(["batch", str(captures), "--out", str(captures / "cake" / "out")]) == 2
+    assert "lie inside one another" in capsys.readouterr().err
+    assert main(["batch", str(tmp_path / "nothing"), "--out", str(tmp_path / "o")]) == 2
