@@ -41,6 +41,7 @@ def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys
     assert {"sfm_s", "dense_s", "masking_s", "completion_s", "meshing_s"} <= set(
         result["stage_seconds"])
     assert result["frames"] == {"total": 16, "registered": 16}
+    assert result["keyframes"]["frames_in"] == 16 == result["keyframes"]["frames_kept"]
     # every registered view's silhouette carved the mesh, and carved only a small part of it
     assert result["mesh"]["silhouette_views"] == 16
     assert 0.0 <= result["mesh"]["carved_fraction"] < 0.25

@@ -40,6 +40,8 @@ class BatchConfig:
     masks: str = "default"
     """``default``, ``given`` or ``auto`` (see ``EstimateConfig.masks``)."""
     use_completion: bool = True
+    max_frames: int = 100
+    """Keyframes reconstructed per capture, at most (see :mod:`volec.keyframes`)."""
     workers: int = 0
     """Worker processes of the local cluster (0: half the cores, at least one)."""
     threads_per_worker: int = 0
@@ -93,8 +95,9 @@ def estimate_one(capture_path: str, out_dir: str, cfg: BatchConfig, threads: int
     row: dict[str, Any] = {"capture": name, "result": str(Path(out_dir) / "result.json")}
     try:
         capture = read_capture(_capture_root(Path(capture_path)))
-        est_cfg = replace(PRESETS[cfg.preset], masks=cfg.masks,
-                          use_completion=cfg.use_completion)
+        base = PRESETS[cfg.preset]
+        est_cfg = replace(base, masks=cfg.masks, use_completion=cfg.use_completion,
+                          keyframes=replace(base.keyframes, max_frames=cfg.max_frames))
         result = run_estimate(capture, Path(out_dir), est_cfg, progress=False)
         row |= {"status": "done", "volume_ml": result["volume_ml"],
                 "trusted": result["trusted"],

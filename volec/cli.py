@@ -51,6 +51,8 @@ def _cmd_synth(args: argparse.Namespace) -> int:
         changes["mask_noise"] = True
     if args.setup:
         changes["setup"] = args.setup
+    if args.motion_blur is not None:
+        changes["motion_blur_share"] = args.motion_blur
     cfg = cfg.with_(**changes)
     start = time.perf_counter()
     if args.item == "all":
@@ -200,7 +202,8 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
                   checkpoint=args.checkpoint or "")
     if args.mask_preset is not None:
         cfg = replace(cfg, masking=MASK_PRESETS[args.mask_preset])
-    cfg = replace(cfg, masks=args.masks)
+    cfg = replace(cfg, masks=args.masks,
+                  keyframes=replace(cfg.keyframes, max_frames=args.max_frames))
     result = run_estimate(capture, Path(args.out), cfg, overwrite=args.overwrite,
                           progress=not args.quiet, scale=scale)
     trust = "trusted" if result["trusted"] else "NOT TRUSTED"
@@ -219,6 +222,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     from volec.batch import TABLE, BatchConfig, run_batch
 
     cfg = BatchConfig(preset=args.preset, masks=args.masks, use_completion=not args.no_completion,
+                      max_frames=args.max_frames,
                       workers=args.workers, threads_per_worker=args.threads_per_worker,
                       scheduler=args.scheduler or "")
     table = run_batch(Path(args.captures), Path(args.out), cfg, progress=not args.quiet)
@@ -228,6 +232,22 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     for _, row in table[table["status"] != "done"].iterrows():
         print(f"failed: {row['capture']}: {row['error']}")
     return 0 if len(done) == len(table) else EXIT_UNTRUSTED
+
+
+def _add_max_frames_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--max-frames", type=_positive_int, default=100, metavar="N",
+                        help="reconstruct at most N keyframes, evenly spread (blurred frames "
+                        "and near-duplicates are always dropped; default 100)")
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if value < 3:
+        raise argparse.ArgumentTypeError(f"need at least 3 frames, not {value}")
+    return value
 
 
 def _add_masks_option(parser: argparse.ArgumentParser) -> None:
@@ -268,9 +288,10 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument("--list", action="store_true", help="list the items and their volumes")
     synth.add_argument("--out", type=Path, help="output folder (for 'all': one folder per item)")
     synth.add_argument("--preset", default="default",
-                       choices=["default", "sharp", "half_orbit", "drift_1cm", "quick"],
+                       choices=["default", "sharp", "half_orbit", "drift_1cm", "quick", "video"],
                        help="default: a phone's look; sharp: the first benchmark's look "
-                       "(one ray per pixel, hard shadows, no blur)")
+                       "(one ray per pixel, hard shadows, no blur); video: 1000 frames, a "
+                       "quarter smeared by hand motion")
     synth.add_argument("--frames", type=int, help="number of frames (default 100)")
     synth.add_argument("--arc", type=float, help="orbit arc in degrees (default 360)")
     synth.add_argument("--drift-mm", type=float, help="largest AR position drift, mm (default 5)")
@@ -282,6 +303,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="give the capture masks as a real segmenter would (boundaries off, "
                        "shadow leaks, missed chunks, false blobs, two empty); ground truth "
                        "keeps the exact ones")
+    synth.add_argument("--motion-blur", type=float, nargs="?", const=0.25, metavar="SHARE",
+                       help="smear this share of the frames by hand motion, as in a phone video "
+                       "(default when given: 0.25)")
     synth.add_argument("--setup", help="plain (default), hard (each item a hard setup for "
                        "segmentation) or one of: white_on_white, plate_like_food, "
                        "across_the_rim, strong_shadows, cup_beside, fork_beside, dim, bright")
@@ -356,6 +380,7 @@ def build_parser() -> argparse.ArgumentParser:
     batch.add_argument("--preset", default="default",
                        choices=["default", "fast", "tolerant_masks"])
     _add_masks_option(batch)
+    _add_max_frames_option(batch)
     batch.add_argument("--no-completion", action="store_true")
     batch.add_argument("--workers", type=int, default=0,
                        help="local worker processes (default: half the cores)")
@@ -401,6 +426,7 @@ def build_parser() -> argparse.ArgumentParser:
                           help="masking preset (tolerant: for imperfect masks, 90%% of views, "
                           "masks grown 3 px)")
     _add_masks_option(estimate)
+    _add_max_frames_option(estimate)
     estimate.add_argument("--strict", action="store_true",
                           help=f"exit with status {EXIT_UNTRUSTED} when the estimate is not "
                           "trusted (result.json says why)")

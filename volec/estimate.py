@@ -40,6 +40,7 @@ from volec.dense import DenseConfig
 from volec.errors import VolecError
 from volec.geometry import horizontal_axes
 from volec.io import folder_lock, write_bytes_atomic, write_json_atomic, write_text_atomic
+from volec.keyframes import KeyframeConfig, choose_keyframes, keyframe_capture
 from volec.masking import PRESETS as MASKING_PRESETS
 from volec.masking import MaskingConfig, check_masks, usable_masks
 from volec.meshing import PRESETS as MESHING_PRESETS
@@ -88,6 +89,9 @@ class EstimateConfig:
     baseline, where only the support plane and Poisson close the unseen underside)."""
     checkpoint: str = ""
     """Completion checkpoint; empty: the one shipped with volec."""
+    keyframes: KeyframeConfig = field(default_factory=KeyframeConfig)
+    """Which frames are reconstructed: blurred ones and near-duplicates are dropped, and at
+    most ``max_frames`` evenly spread ones kept (:mod:`volec.keyframes`)."""
     sfm: SfmConfig = field(default_factory=SfmConfig)
     masks: MaskSource = "default"
     """The capture's own food masks (``given``), automatic ones (``auto``, :mod:`volec.segment`),
@@ -457,6 +461,9 @@ def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = N
     out_dir = Path(out_dir)
     check_output_folder(capture, out_dir)
     scale = scale or require_metric(capture, cfg.scale)
+    selection = choose_keyframes(capture, cfg.keyframes)
+    keyframes = selection.record(capture)
+    capture = keyframe_capture(capture, selection)
     if masks_source(capture, cfg.masks) == "given":  # checked before any work
         check_masks(given_masks(capture), cfg.masking.checks)
     model = load_completion_model(cfg) if cfg.use_completion else None
@@ -488,6 +495,7 @@ def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = N
         seconds["report_s"] = round(time.perf_counter() - t, 2)
         seconds["total_s"] = round(time.perf_counter() - start, 2)
         record = estimate_record(capture, stages, est, cfg, scale, seconds)
+        record["keyframes"] = keyframes
         pictures = {k.removeprefix("picture_"): out_dir / v for k, v in files.items()
                     if k.startswith("picture_")}
         write_text_atomic(out_dir / "report.md", report_markdown(record, pictures, out_dir))

@@ -90,6 +90,11 @@ class SynthConfig:
     """Relative frame-to-frame auto-exposure change."""
     jpeg_quality: int = 90
     """JPEG quality of the frames."""
+    motion_blur_share: float = 0.0
+    """Share of frames smeared by hand motion (a phone video's shaken frames); 0: none."""
+    motion_blur_px: float = 12.0
+    """The longest smear of a shaken frame, pixels (each shaken frame draws its length between
+    a quarter of this and this, and its direction near the orbit's, horizontal, one)."""
     mask_noise: bool = False
     """The capture's masks are what a real segmenter might give (boundaries a few pixels
     off, the shadow leaking in on some frames, a missed chunk or a false blob on a few, two
@@ -115,6 +120,8 @@ class SynthConfig:
             raise ConfigError(f"jpeg_quality must be in 1..100, got {self.jpeg_quality}")
         if self.workers < 1:
             raise ConfigError(f"workers must be at least 1, got {self.workers}")
+        if not 0.0 <= self.motion_blur_share <= 1.0:
+            raise ConfigError(f"motion_blur_share must be in 0..1, got {self.motion_blur_share}")
 
     @property
     def intrinsics(self) -> Intrinsics:
@@ -160,9 +167,11 @@ PRESETS: dict[str, SynthConfig] = {
         trajectory=TrajectoryConfig(n_frames=12), width=240, height=320, focal_px=260.0,
         mesh_resolution=64,
     ),
+    "video": SynthConfig(trajectory=TrajectoryConfig(n_frames=1000), motion_blur_share=0.25),
 }
 """Named configs: ``default`` (100 frames, full orbit, a phone's look), ``sharp`` (the same with
-the first benchmark's look), ``half_orbit``, ``drift_1cm``, ``quick``."""
+the first benchmark's look), ``half_orbit``, ``drift_1cm``, ``quick``, ``video`` (30 s of phone
+video: 1000 frames, a quarter of them smeared by hand motion)."""
 
 
 # ----------------------------------------------------------------------------- rendering
@@ -191,6 +200,9 @@ def _render_frame(args: tuple[int, np.ndarray, SynthConfig]
     rng = np.random.default_rng([cfg.seed, index, 7])
     gain = 1.0 + cfg.exposure_variation * np.sin(0.15 * index + cfg.seed)
     linear = np.clip(view.rgb * gain, 0.0, 1.0)
+    smear = hand_shake(cfg, index)
+    if smear is not None:
+        linear = motion_blur(linear, *smear)
     if cfg.shot_noise > 0:
         linear = linear + rng.normal(size=linear.shape) * np.sqrt(cfg.shot_noise * linear)
     img = to_srgb8(linear).astype(float)
@@ -199,6 +211,33 @@ def _render_frame(args: tuple[int, np.ndarray, SynthConfig]
     jpg = io.BytesIO()
     Image.fromarray(img8).save(jpg, format="JPEG", quality=cfg.jpeg_quality)
     return jpg.getvalue(), _png(view.food_mask), np.packbits(view.shadow)
+
+
+def hand_shake(cfg: SynthConfig, index: int) -> tuple[float, float] | None:
+    """(smear length in pixels, its angle in degrees) of frame ``index`` when hand motion blurs
+    it, else None; seeded by the frame index."""
+    rng = np.random.default_rng([cfg.seed, index, 11])
+    if cfg.motion_blur_share <= 0 or rng.random() >= cfg.motion_blur_share:
+        return None
+    return float(rng.uniform(0.25, 1.0) * cfg.motion_blur_px), float(rng.normal(scale=20.0))
+
+
+def motion_blur(linear: np.ndarray, length_px: float, angle_deg: float) -> np.ndarray:
+    """``linear`` (H, W, 3) smeared along a line of ``length_px`` at ``angle_deg`` from the
+    image's horizontal: what moving the phone during the exposure gives."""
+    import cv2
+
+    size = int(np.ceil(length_px)) | 1
+    kernel = np.zeros((size, size), np.float32)
+    c = size // 2
+    t = np.linspace(-length_px / 2, length_px / 2, 4 * size)
+    a = np.radians(angle_deg)
+    cols = np.clip(np.round(c + t * np.cos(a)).astype(int), 0, size - 1)
+    rows = np.clip(np.round(c - t * np.sin(a)).astype(int), 0, size - 1)
+    np.add.at(kernel, (rows, cols), 1.0)
+    kernel /= kernel.sum()
+    return cv2.filter2D(linear.astype(np.float32), -1, kernel, borderType=cv2.BORDER_REFLECT
+                        ).astype(linear.dtype)
 
 
 def render_frames(
@@ -407,6 +446,9 @@ def write_synthetic_capture(
             "setup": asdict(plan.scene.setup),
             "masks_in_capture": "noisy" if cfg.mask_noise else "exact",
             "mask_noise": dict(zip(names, noise_notes, strict=True)),
+            "motion_blur": {n: {"length_px": round(smear[0], 2), "angle_deg": round(smear[1], 1)}
+                            for i, n in enumerate(names)
+                            if (smear := hand_shake(cfg, i)) is not None},
             "ar_pose_error": _pose_errors(reported_world, exact_world),
             "config": cfg.recorded(),
             "code": synth_code(),
