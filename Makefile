@@ -37,14 +37,17 @@ lint: setup
 	$(VENV)/bin/ruff check .
 
 # Every table and figure, from the ordered notebooks, headless. QUICK=1 for the CI-sized run.
+# Each executed notebook is also exported to HTML, to browse the results without Jupyter.
 paper: setup
 	@mkdir -p build/notebooks figures
 	@for nb in $(NOTEBOOKS); do \
 	  echo "== $$nb"; \
 	  $(VENV)/bin/papermill --log-level WARNING -k volec -p quick $(QUICK) \
 	    "$$nb" "build/notebooks/$$(basename $$nb)" || exit 1; \
+	  $(VENV)/bin/jupyter-nbconvert --log-level WARN --to html --embed-images \
+	    --output-dir build/notebooks "build/notebooks/$$(basename $$nb)" || exit 1; \
 	done
-	@echo "figures and tables are in figures/; executed notebooks in build/notebooks/"
+	@echo "figures and tables are in figures/; executed notebooks in build/notebooks/ (.ipynb, and .html to read in a browser)"
 
 paper-quick:
 	$(MAKE) paper QUICK=1

@@ -63,8 +63,8 @@ raw[["item", "gt_ml", "no_completion_ml", "completion_ml", "no_completion_chamfe
 # %% [markdown]
 # ## One item, stage by stage
 #
-# Seen from slightly below the plate's level: the completed cloud's grey points are the
-# network's.
+# Seen from slightly below the plate's level: the completed cloud's magenta points (drawn
+# larger) are the network's.
 
 # %%
 item = items[0] if quick else shown_item

@@ -35,6 +35,10 @@ def test_a_batch_estimates_each_capture_records_a_failure_and_skips_finished_wor
     result = json.loads((out / "cake" / "result.json").read_text())
     assert cake["status"] == "done" and cake["volume_ml"] == result["volume_ml"]
     assert not cake["trusted"] and "narrow_orbit" in cake["reasons"]  # 16 frames over 100 deg
+    # the batch's page links the report of the capture that has one, and only that
+    index = (out / "index.html").read_text()
+    assert 'href="cake/report.html"' in index and (out / "cake" / "report.html").exists()
+    assert 'href="broken/report.html"' not in index and "transforms.json: not valid" in index
 
     # a second run finds the cake finished and writes nothing into its folder
     finished = snapshot(out / "cake")

@@ -48,6 +48,10 @@ def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys
     for name in ("scene.ply", "food_masked.ply", "food_completed.ply", "report.md",
                  "report/stages_above.png", "report/masks.png"):
         assert (out / name).stat().st_size > 0
+    # the page a person opens says the volume, why it is not trusted, and holds the 3D view
+    page = (out / "report.html").read_text()
+    assert "report.html" in result["files"] and "narrow_orbit" in page
+    assert f"{result['volume_ml']:.1f} mL" in page and 'id="volec-data"' in page
     # the mesh a standard tool opens is closed and holds the volume reported
     mesh = trimesh.load(out / "mesh.ply")
     assert volume_ml(mesh) == pytest.approx(result["volume_ml"], rel=1e-6)

@@ -68,3 +68,8 @@ def test_notebook_runs_in_quick_mode(path, tmp_path, notebook_data, monkeypatch)
     )
     written = list((tmp_path / "figures").iterdir())
     assert written, "the notebook wrote no figure or table"
+    # `make paper` exports each executed notebook to HTML, pictures inside it
+    from nbconvert import HTMLExporter
+
+    page, _ = HTMLExporter(embed_images=True).from_filename(str(tmp_path / path.name))
+    assert "<html" in page and "Traceback" not in page

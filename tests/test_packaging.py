@@ -1,5 +1,5 @@
 """Packaging: `pip install .` gives a working volec, its dependencies declared, its shipped
-checkpoint found as package data."""
+checkpoint and report viewer found as package data."""
 
 from __future__ import annotations
 
@@ -69,14 +69,16 @@ def test_an_installed_volec_finds_its_checkpoint_outside_the_source_tree(tmp_pat
                     "--no-build-isolation", "--target", str(target), str(source)],
                    check=True, capture_output=True)
     shutil.rmtree(source)  # nothing may come from the source tree
-    probe = ("import volec, volec.completion.complete as c, volec.estimate as e;"
+    probe = ("import volec, volec.completion.complete as c, volec.estimate as e, volec.report as r;"
              "print(volec.__file__); print(c.SHIPPED_CHECKPOINT);"
-             "print(e.load_completion_model(e.EstimateConfig()).cfg.n_input)")
+             "print(e.load_completion_model(e.EstimateConfig()).cfg.n_input);"
+             "print(len(r.viewer_script()))")
     env = {**os.environ, "PYTHONPATH": str(target)}
     out = subprocess.run([sys.executable, "-c", probe], cwd=tmp_path, env=env, check=True,
                          capture_output=True, text=True).stdout.splitlines()
     assert out[0].startswith(str(target)) and out[1].startswith(str(target))
     assert int(out[2]) > 0  # the network loaded from the installed checkpoint
+    assert int(out[3]) > 100_000  # the report's bundled 3D viewer is package data too
     cli = subprocess.run([sys.executable, "-m", "volec", "--version"], cwd=tmp_path, env=env,
                          capture_output=True, text=True)
     assert cli.returncode == 0 and cli.stdout.startswith("volec ")

@@ -5,8 +5,10 @@ settings and where to run (a local Dask cluster by default: one capture per work
 its threads limited so the workers do not oversubscribe the cores; or an existing cluster's
 scheduler address). Out: ``OUT/CAPTURE/`` holding each capture's result folder (what
 ``volec estimate`` writes), and ``OUT/batch.csv``: one row per capture (volume, trusted, the
-reasons' codes, warnings, seconds, and the error of a capture that failed), written atomically
-after every capture that finishes, so an interrupted batch keeps what it finished. A capture's
+reasons' codes, warnings, seconds, and the error of a capture that failed), and
+``OUT/index.html``: that table as a sortable page linking each capture's ``report.html``; both
+written atomically after every capture that finishes, so an interrupted batch keeps what it
+finished. A capture's
 failure is recorded and does not stop the others; a re-run finds the finished captures finished
 (their ``result.json`` is current) and skips their work.
 """
@@ -23,10 +25,12 @@ from typing import Any
 import pandas as pd
 
 from volec.errors import VolecError
+from volec.progress import Progress
 
 log = logging.getLogger(__name__)
 
 TABLE = "batch.csv"
+INDEX = "index.html"
 COLUMNS = ["capture", "status", "volume_ml", "trusted", "reasons", "warnings", "seconds",
            "masks", "error", "result"]
 
@@ -137,12 +141,17 @@ def _cluster(cfg: BatchConfig):  # -> (Client, LocalCluster or None, threads per
 
 
 def write_table(rows: list[dict[str, Any]], out_dir: Path) -> Path:
-    """``OUT/batch.csv`` from the rows so far (atomically)."""
+    """``OUT/batch.csv`` and ``OUT/index.html`` from the rows so far (atomically); the page
+    links the report of every capture that has one."""
     from volec.io import write_text_atomic
+    from volec.report import write_batch_index
 
     table = pd.DataFrame(rows, columns=COLUMNS).sort_values("capture")
     path = Path(out_dir) / TABLE
     write_text_atomic(path, table.to_csv(index=False))
+    reports = {name: f"{name}/report.html" for name in table["capture"]
+               if (Path(out_dir) / name / "report.html").exists()}
+    write_batch_index(Path(out_dir) / INDEX, table.drop(columns=["result"]), reports)
     return path
 
 
@@ -151,7 +160,6 @@ def run_batch(captures_dir: Path, out_dir: Path, cfg: BatchConfig | None = None,
     """Estimate every capture of ``captures_dir`` into ``out_dir`` (see the module docstring)
     and return the table."""
     from dask.distributed import as_completed
-    from tqdm.auto import tqdm
 
     cfg = cfg or BatchConfig()
     captures = find_captures(captures_dir)
@@ -167,12 +175,11 @@ def run_batch(captures_dir: Path, out_dir: Path, cfg: BatchConfig | None = None,
     try:
         futures = [client.submit(estimate_one, str(c), str(out_dir / c.name), cfg, threads,
                                  key=f"estimate-{c.name}", pure=False) for c in captures]
-        bar = tqdm(total=len(futures), desc="batch", unit="capture", disable=not progress)
-        for future in as_completed(futures):
-            rows.append(future.result())
-            write_table(rows, out_dir)
-            bar.update()
-        bar.close()
+        with Progress(len(futures), "batch", "captures", progress) as bar:
+            for future in as_completed(futures):
+                rows.append(future.result())
+                write_table(rows, out_dir)
+                bar.update()
     finally:
         client.close()
         if cluster is not None:

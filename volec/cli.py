@@ -214,12 +214,12 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
     for warning in result["warnings"][len(result["reasons"]):]:
         print(f"warning: {warning}")
     print(f"result: {Path(args.out) / 'result.json'}; mesh: {Path(args.out) / 'mesh.ply'}, "
-          f"mesh.glb; report: {Path(args.out) / 'report.md'}")
+          f"mesh.glb; report: {Path(args.out) / 'report.html'} (and report.md)")
     return EXIT_UNTRUSTED if args.strict and not result["trusted"] else 0
 
 
 def _cmd_batch(args: argparse.Namespace) -> int:
-    from volec.batch import TABLE, BatchConfig, run_batch
+    from volec.batch import INDEX, TABLE, BatchConfig, run_batch
 
     cfg = BatchConfig(preset=args.preset, masks=args.masks, use_completion=not args.no_completion,
                       max_frames=args.max_frames,
@@ -228,7 +228,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     table = run_batch(Path(args.captures), Path(args.out), cfg, progress=not args.quiet)
     done = table[table["status"] == "done"]
     print(f"{len(done)} of {len(table)} captures estimated ({int(done['trusted'].sum())} "
-          f"trusted); table: {Path(args.out) / TABLE}")
+          f"trusted); table: {Path(args.out) / TABLE}; page: {Path(args.out) / INDEX}")
     for _, row in table[table["status"] != "done"].iterrows():
         print(f"failed: {row['capture']}: {row['error']}")
     return 0 if len(done) == len(table) else EXIT_UNTRUSTED
@@ -370,8 +370,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="volec estimate over every capture in a folder, on Dask, with one table",
         description="Run `volec estimate` on every capture (subfolder) of CAPTURES on a local "
         "Dask cluster (one capture per worker, threads limited per worker) or an existing one "
-        "(--scheduler). Writes OUT/CAPTURE/ (each capture's result folder) and OUT/batch.csv "
-        "(capture, volume, trusted, reasons, warnings, seconds, error). A capture that fails is "
+        "(--scheduler). Writes OUT/CAPTURE/ (each capture's result folder), OUT/batch.csv "
+        "(capture, volume, trusted, reasons, warnings, seconds, error) and OUT/index.html (the "
+        "table, sortable, linking each capture's report). A capture that fails is "
         "recorded and the others go on; a re-run skips the finished ones. Exits with 3 when a "
         "capture failed.",
     )
@@ -395,7 +396,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="complete a metric partial cloud of one food item with the trained network",
         description="Normalize the partial cloud, predict the missing part with the shipped "
         "SymmCompletion checkpoint, map it back into the input's frame and remove outliers. "
-        "Writes a PLY with the partial's points plus the predicted ones (grey).",
+        "Writes a PLY with the partial's points plus the predicted ones (magenta).",
     )
     complete.add_argument("partial", help="partial cloud (PLY; metres, any frame)")
     complete.add_argument("--out", required=True, type=Path, help="completed cloud (PLY)")
@@ -410,8 +411,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="the whole pipeline: volume in mL, a closed mesh and a report from a capture",
         description="SfM, dense stereo, masking, completion, meshing and volume. OUTDIR is "
         "also the work folder: a re-run reuses the finished stages. Writes OUTDIR/result.json "
-        "(volume_ml, warnings, stage times), mesh.ply, mesh.glb, the clouds of each stage "
-        "and report.md; the capture is only read.",
+        "(volume_ml, warnings, stage times), mesh.ply, mesh.glb, the clouds of each stage, "
+        "report.html (open it in a browser, offline) and report.md; the capture is only read.",
     )
     estimate.add_argument("capture", help="capture folder (transforms.json, masks optional)")
     estimate.add_argument("--out", required=True, type=Path, help="output folder")

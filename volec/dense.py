@@ -50,6 +50,7 @@ from volec.pointcloud import (
     to_open3d,
     write_cloud_record,
 )
+from volec.progress import progress_over
 from volec.segment import MaskSet
 
 log = logging.getLogger(__name__)
@@ -585,8 +586,6 @@ def plan_dense(capture: Capture, masks: MaskSet | None, T_world_from_cam: np.nda
     """Load the registered frames (``T_world_from_cam`` (N, 4, 4) per capture frame) and
     choose the reference views, their sources and their consistency checks; ``masks`` bound
     the work (``roi="mask"``)."""
-    from tqdm.auto import tqdm
-
     if cfg.ncc_window_px % 2 == 0 or cfg.ncc_window_px < 3:
         raise ConfigError("ncc_window_px must be odd and at least 3")
     if len(T_world_from_cam) != len(capture) or len(registered) != len(capture):
@@ -599,7 +598,7 @@ def plan_dense(capture: Capture, masks: MaskSet | None, T_world_from_cam: np.nda
         raise DenseError(f"only {len(indices)} frames registered; dense stereo needs 3 or more")
     views = [prepare_view(int(i), capture.frames[i], T_world_from_cam[i], cfg,
                           masks.mask(int(i)) if use_mask else None)
-             for i in tqdm(indices, desc="dense: loading frames", disable=not progress)]
+             for i in progress_over(indices, "dense: loading frames", progress, "frames")]
     centres = np.stack([v.centre for v in views])
     targets = _object_targets(views, sparse_xyz)
     positions = np.arange(len(views))
@@ -617,11 +616,9 @@ def depth_maps(plan: DensePlan, sparse_xyz: np.ndarray, cfg: DenseConfig,
                progress: bool = False) -> tuple[dict[int, DepthMap], list]:
     """The plane-sweep depth map of every reference view of ``plan``, and each one's depth
     range (None where too few sparse points fall in its view: then its map is empty)."""
-    from tqdm.auto import tqdm
-
     maps: dict[int, DepthMap] = {}
     ranges = []
-    for r in tqdm(plan.references, desc="dense: depth maps", disable=not progress):
+    for r in progress_over(plan.references, "dense: depth maps", progress, "views"):
         view = plan.views[r]
         near_far = depth_range(view, sparse_xyz, cfg.depth_range_margin)
         ranges.append(near_far)

@@ -5,8 +5,11 @@ an :class:`EstimateConfig`. Out, in the output folder (which is also the work fo
 re-run reuses the finished SfM, dense and masking stages, and a finished estimate):
 
 - ``scene.ply``, ``food_masked.ply`` (and ``sfm/``, ``dense.json``, ``masking.json``);
-- ``food_completed.ply``: the masked cloud plus the network's points (grey), with completion;
+- ``food_completed.ply``: the masked cloud plus the network's points (magenta), with completion;
 - ``mesh.ply`` and ``mesh.glb``: the closed food mesh (metres, the capture's world frame);
+- ``report.html``: one self-contained page (:mod:`volec.report`): the volume, its trust flag
+  and reasons, the frames with the masks' outlines, the clouds and the mesh in a 3D viewer, the
+  stage times and warnings; opens offline in any browser;
 - ``report.md`` with pictures in ``report/``;
 - ``result.json``: ``volume_ml``, ``trusted`` and the ``reasons`` it is not (:mod:`volec.trust`),
   warnings, frames used, per-stage wall time, the support plane, the scale's source, the
@@ -64,11 +67,12 @@ from volec.pipeline import (
     preflight,
     read_record,
     run_stages,
-    say,
     stale_reasons,
 )
 from volec.pointcloud import PointCloud, write_ply
+from volec.progress import step
 from volec.provenance import capture_identity, file_digest, json_data, stage_provenance
+from volec.report import ReportScene, write_report_html
 from volec.scale import ScaleCheck, ScaleConfig, require_metric
 from volec.segment import MaskSet, SegmentConfig, given_masks
 from volec.sfm import SfmConfig
@@ -307,11 +311,11 @@ def report_pictures(result: FoodMesh, up: np.ndarray, folder: Path, masked: Poin
                     ) -> dict[str, Path]:
     """PNG pictures of the masked cloud, the meshed cloud and the mesh, from above and from
     below the table's level (where only completion puts points)."""
-    from volec.viz import panels_around, save_figure
+    from volec.viz import Geometry, Highlighted, panels_around, save_figure
 
-    panels: dict[str, PointCloud | trimesh.Trimesh] = {"masked cloud": masked}
+    panels: dict[str, Geometry] = {"masked cloud": masked}
     if result.completion_summary is not None:
-        panels["completed cloud"] = result.cloud
+        panels["completed cloud"] = Highlighted(masked, result.cloud.xyz[len(masked):])
     panels["mesh"] = result.mesh.mesh
     paths = {}
     for name, elevation in (("above", 35.0), ("below", -25.0)):
@@ -334,6 +338,14 @@ def masks_picture(capture: Capture, masks: MaskSet, folder: Path, frames: int = 
     titles = [f"{Path(capture.frames[i].name).stem} ({masks.source})" for i in chosen]
     fig = mask_outline_strip(images, [masks.mask(int(i)) for i in chosen], titles)
     return save_figure(fig, folder / "masks.png")
+
+
+def report_scene(est: Estimate, stages: StageResults) -> ReportScene:
+    """What the report's 3D view shows: the mesh, the masked cloud and the network's points
+    (those the completion added after the masked ones)."""
+    observed = len(stages.masked.cloud)
+    return ReportScene(est.food.mesh.mesh, stages.masked.cloud, est.food.cloud.xyz[observed:],
+                       est.view_up)
 
 
 def report_markdown(result: dict[str, Any], pictures: dict[str, Path], out_dir: Path) -> str:
@@ -426,7 +438,7 @@ def write_outputs(out_dir: Path, est: Estimate, capture: Capture, stages: StageR
     names that ``result.json`` lists."""
     food = est.food
     files = {"scene": "scene.ply", "food_masked": "food_masked.ply", "mesh_ply": "mesh.ply",
-             "mesh_glb": "mesh.glb", "report": "report.md"}
+             "mesh_glb": "mesh.glb", "report": "report.md", "report_html": "report.html"}
     if food.completion_summary is not None:
         write_ply(with_normals(food.cloud), out_dir / "food_completed.ply")
         files["food_completed"] = "food_completed.ply"
@@ -478,18 +490,18 @@ def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = N
         wanted = result_provenance(identity, cfg, stages)
         finished = None if overwrite else _finished_result(out_dir, wanted)
         if finished is not None:
-            say(progress, f"{out_dir / RESULT_FILE} is already finished: "
+            step(progress, f"{out_dir / RESULT_FILE} is already finished: "
                 f"{finished['volume_ml']:.1f} mL")
             return finished
         (out_dir / RESULT_FILE).unlink(missing_ok=True)  # gone until the new one is complete
         seconds = dict(stages.seconds)
-        say(progress, "support plane" + (", completion" if model else "") + " and meshing")
+        step(progress, "support plane" + (", completion" if model else "") + " and meshing")
         t = time.perf_counter()
         silhouettes = food_silhouettes(capture, stages, cfg)
         seconds["silhouettes_s"] = round(time.perf_counter() - t, 2)
         est = estimate_from_stages(capture, stages, model, cfg, silhouettes, scale)
         seconds.update(est.food.seconds)
-        say(progress, "writing the clouds, the mesh and the report")
+        step(progress, "writing the clouds, the mesh and the report")
         t = time.perf_counter()
         files = write_outputs(out_dir, est, capture, stages)
         seconds["report_s"] = round(time.perf_counter() - t, 2)
@@ -499,9 +511,11 @@ def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = N
         pictures = {k.removeprefix("picture_"): out_dir / v for k, v in files.items()
                     if k.startswith("picture_")}
         write_text_atomic(out_dir / "report.md", report_markdown(record, pictures, out_dir))
+        write_report_html(out_dir / "report.html", record, report_scene(est, stages),
+                          {name: path.read_bytes() for name, path in pictures.items()})
         record["provenance"] = wanted
         record["files"] = {name: file_digest(out_dir / name) for name in files.values()}
         write_json_atomic(out_dir / RESULT_FILE, record)
-    say(progress, f"done: {est.food.volume_ml:.1f} mL in {seconds['total_s']:.0f} s"
+    step(progress, f"done: {est.food.volume_ml:.1f} mL in {seconds['total_s']:.0f} s"
         + ("" if est.trusted else " (not trusted)"))
     return record

@@ -40,6 +40,7 @@ from volec.metrics import (
     signed_summary,
 )
 from volec.pipeline import config_record, run_sfm_stage, run_stages
+from volec.progress import step
 from volec.provenance import code_identity, file_digest, module_digest
 from volec.segment import given_masks
 from volec.sfm import SfmConfig, evaluate_sfm
@@ -447,8 +448,7 @@ def map_items(function: Callable[..., dict[str, Any]], jobs: list[tuple], labels
     if workers <= 1 or len(jobs) <= 1:
         rows = []
         for n, (job, label) in enumerate(zip(jobs, labels, strict=True)):
-            if progress:
-                print(f"[{n + 1}/{len(jobs)}] {label}", flush=True)
+            step(progress, f"[{n + 1}/{len(jobs)}] {label}")
             rows.append(function(*job))
         return rows
     import os
@@ -466,8 +466,7 @@ def map_items(function: Callable[..., dict[str, Any]], jobs: list[tuple], labels
         for done, future in enumerate(as_completed(futures), start=1):
             n = futures[future]
             rows[n] = future.result()
-            if progress:
-                print(f"[{done}/{len(jobs)}] {labels[n]} done", flush=True)
+            step(progress, f"[{done}/{len(jobs)}] {labels[n]} done")
     finally:
         client.close()
         cluster.close()
@@ -1010,10 +1009,13 @@ def qualitative_panels(root: Path, item: str, scenario: Scenario) -> dict[str, A
 
     from volec.masking import load_masking
     from volec.pointcloud import read_ply
+    from volec.viz import Highlighted
 
     out = ensure_capture(root, item, scenario)
     work = out / "work"
-    return {"masked cloud": load_masking(work).cloud,
-            "completed cloud": read_ply(work / "food_completed.ply"),
+    masked = load_masking(work).cloud
+    completed = read_ply(work / "food_completed.ply")  # the masked points, then the network's
+    return {"masked cloud": masked,
+            "completed cloud": Highlighted(masked, completed.xyz[len(masked):]),
             "mesh (completion)": trimesh.load(work / "mesh_completion.ply"),
             "true surface": load_ground_truth_mesh(out)}

@@ -18,7 +18,6 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import sys
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -37,6 +36,7 @@ from volec.masking import (
     require_masks,
     save_masking,
 )
+from volec.progress import step
 from volec.provenance import (
     capture_identity,
     differences,
@@ -161,11 +161,6 @@ def _reusable(path: Path, wanted: dict[str, Any], overwrite: bool, stale: Stale)
         _refuse(path, reasons)
     log.info("%s is stale (%s): recomputing", path, "; ".join(reasons))
     return False
-
-
-def say(progress: bool, message: str) -> None:
-    if progress:
-        print(f"volec: {message}", file=sys.stderr, flush=True)
 
 
 MaskSource = Literal["default", "given", "auto"]
@@ -294,7 +289,7 @@ def run_stages(capture: Capture, work_dir: Path, sfm_cfg: SfmConfig | None = Non
     seconds: dict[str, float] = {}
     reused: list[str] = []
 
-    say(progress, f"SfM on {len(capture)} frames")
+    step(progress, f"SfM on {len(capture)} frames")
     t = time.perf_counter()
     if _reusable(work_dir / STAGES["sfm"].record, wanted["sfm"], overwrite, stale):
         sfm = load_sfm(work_dir)
@@ -303,7 +298,7 @@ def run_stages(capture: Capture, work_dir: Path, sfm_cfg: SfmConfig | None = Non
         sfm = run_sfm(capture, work_dir, sfm_cfg, provenance=wanted["sfm"])
     seconds["sfm_s"] = round(time.perf_counter() - t, 2)
 
-    say(progress, "food segmentation" if source == "auto" else "the food masks")
+    step(progress, "food segmentation" if source == "auto" else "the food masks")
     t = time.perf_counter()
     if isinstance(masks, MaskSet):
         food_masks, was_reused = masks, True
@@ -316,7 +311,7 @@ def run_stages(capture: Capture, work_dir: Path, sfm_cfg: SfmConfig | None = Non
     seconds["segment_s"] = round(time.perf_counter() - t, 2)
     upstream = {"sfm": record_digest(sfm.summary), "masks": masks_digest(food_masks)}
 
-    say(progress, "dense stereo")
+    step(progress, "dense stereo")
     t = time.perf_counter()
     dense_wanted = {**wanted["dense"], "upstream": upstream}
     if "masks" in reused and _reusable(work_dir / "dense.json", dense_wanted, overwrite, stale):
@@ -329,7 +324,7 @@ def run_stages(capture: Capture, work_dir: Path, sfm_cfg: SfmConfig | None = Non
         save_dense(work_dir, dense)
     seconds["dense_s"] = round(time.perf_counter() - t, 2)
 
-    say(progress, "masking")
+    step(progress, "masking")
     t = time.perf_counter()
     mask_wanted = {**wanted["masking"], "upstream": {**upstream,
                                                      "dense": record_digest(dense.summary)}}

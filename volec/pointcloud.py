@@ -17,6 +17,10 @@ import numpy as np
 
 from volec.errors import DataError, VolecError
 
+PREDICTED_RGB = (214, 36, 110)
+"""The colour of points a shape prior added (the completion network's): a magenta that no
+food has, in ``food_completed.ply``, the pictures and the report."""
+
 
 @dataclass(frozen=True, eq=False)
 class PointCloud:

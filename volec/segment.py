@@ -40,6 +40,7 @@ from scipy import ndimage
 
 from volec.capture import Capture, Intrinsics, read_mask
 from volec.errors import VolecError
+from volec.progress import progress_over
 
 log = logging.getLogger(__name__)
 
@@ -778,8 +779,6 @@ def segment(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarr
             progress: bool = False) -> MaskSet:
     """Food masks for every frame of ``capture`` (see the module docstring): the poses
     (N, 4, 4) and ``registered`` (N,) are the SfM stage's, ``sparse_xyz`` its points."""
-    from tqdm.auto import tqdm
-
     cfg = cfg or SegmentConfig()
     start = time.perf_counter()
     registered = np.asarray(registered, bool)
@@ -789,7 +788,7 @@ def segment(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarr
     chosen = hull_views(registered, cfg.hull_views)
     views = [_work_view(capture, int(i), T_world_from_cam[i], cfg) for i in chosen]
     coarse = []
-    for i, view in zip(tqdm(chosen, desc="segment: hull views", disable=not progress), views,
+    for i, view in zip(progress_over(chosen, "segment: hull views", progress, "views"), views,
                        strict=True):
         others = [_work_view(capture, int(j), T_world_from_cam[j], cfg)
                   for j in plane_neighbours(T_world_from_cam, registered, int(i), geometry)]
@@ -806,8 +805,8 @@ def segment(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarr
     surface = hull_surface(voxels, cfg.voxel_m)
     t_hull = time.perf_counter() - start
     masks, confidence, failed = [], [], {}
-    for i, frame in enumerate(tqdm(capture.frames, desc="segment: masks",
-                                   disable=not progress)):
+    for i, frame in enumerate(progress_over(capture.frames, "segment: masks", progress,
+                                            "frames")):
         sil = hull_silhouette(surface, frame.intrinsics, np.linalg.inv(T_world_from_cam[i]),
                               cfg.voxel_m)
         with Image.open(frame.image_path) as im:

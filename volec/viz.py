@@ -10,6 +10,7 @@ from __future__ import annotations
 import io
 import os
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
@@ -20,7 +21,10 @@ import trimesh
 from matplotlib.figure import Figure
 
 from volec.io import write_bytes_atomic
-from volec.pointcloud import PointCloud
+from volec.pointcloud import PREDICTED_RGB, PointCloud
+
+PREDICTED_COLOUR = "#{:02x}{:02x}{:02x}".format(*PREDICTED_RGB)
+"""The completion network's points in every picture, the report and ``food_completed.ply``."""
 
 
 def mask_outline_strip(images: Sequence[np.ndarray], masks: Sequence[np.ndarray],
@@ -86,8 +90,61 @@ def trajectory_figure(
     return fig
 
 
+VIEW_ANGLE_DEG = 30.0
+"""Vertical field of view of every rendered picture."""
+
+
+@dataclass(frozen=True, eq=False)
+class Highlighted:
+    """A cloud with points of another kind drawn over it, larger and in one colour: the
+    completion network's points over the observed ones."""
+
+    cloud: PointCloud
+    extra_xyz: np.ndarray
+    """(M, 3) the points drawn over ``cloud``, metres."""
+    colour: str = PREDICTED_COLOUR
+
+    def xyz(self) -> np.ndarray:
+        """Every point, metres."""
+        return np.vstack([self.cloud.xyz, np.asarray(self.extra_xyz, float).reshape(-1, 3)])
+
+
+Geometry = PointCloud | trimesh.Trimesh | Highlighted
+"""What a picture shows."""
+
+
+def geometry_points(geometry: Geometry) -> np.ndarray:
+    """(N, 3) the points or vertices of ``geometry``."""
+    if isinstance(geometry, Highlighted):
+        return geometry.xyz()
+    return geometry.xyz if isinstance(geometry, PointCloud) else np.asarray(geometry.vertices)
+
+
+def framed_view(points: np.ndarray, direction: np.ndarray, up: np.ndarray,
+                size_px: tuple[int, int], fill: float = 0.9) -> tuple[np.ndarray, np.ndarray]:
+    """(eye, target) of a camera looking along ``-direction`` (``direction`` points from the
+    object to the eye) with ``up`` upwards and a vertical field of view of
+    :data:`VIEW_ANGLE_DEG`, placed so that ``points`` fill ``fill`` of the picture's width or
+    height (whichever they reach first): every point p at depth d from the eye must have
+    |lateral offset| <= fill * tan(half angle) * d."""
+    direction = np.asarray(direction, float) / np.linalg.norm(direction)
+    right = np.cross(direction, up)
+    right /= np.linalg.norm(right)
+    upward = np.cross(right, direction)
+    points = np.asarray(points, float)
+    x, y = points @ right, points @ upward
+    target = (right * (x.min() + x.max()) / 2 + upward * (y.min() + y.max()) / 2
+              + direction * float(np.median(points @ direction)))
+    offsets = points - target
+    along, x, y = offsets @ direction, offsets @ right, offsets @ upward
+    tan_v = fill * np.tan(np.radians(VIEW_ANGLE_DEG / 2))
+    tan_h = tan_v * size_px[0] / size_px[1]
+    distance = float(np.max(along + np.maximum(np.abs(x) / tan_h, np.abs(y) / tan_v)))
+    return target + max(distance, 1e-6) * direction, target
+
+
 def render_geometry(
-    geometry: PointCloud | trimesh.Trimesh,
+    geometry: Geometry,
     eye: np.ndarray,
     target: np.ndarray,
     up: np.ndarray,
@@ -101,6 +158,12 @@ def render_geometry(
 
     plotter = pv.Plotter(off_screen=True, window_size=size_px)
     plotter.set_background("white")
+    if isinstance(geometry, Highlighted):
+        extra = np.asarray(geometry.extra_xyz, float).reshape(-1, 3)
+        if len(extra):
+            plotter.add_mesh(pv.PolyData(extra), color=geometry.colour,
+                             point_size=2.5 * point_size_px, render_points_as_spheres=True)
+        geometry = geometry.cloud
     if isinstance(geometry, PointCloud):
         data = pv.PolyData(geometry.xyz)
         if geometry.rgb is not None:
@@ -122,7 +185,7 @@ def _screenshot(plotter, eye: np.ndarray, target: np.ndarray, up: np.ndarray) ->
     plotter.camera.position = tuple(np.asarray(eye, float))
     plotter.camera.focal_point = tuple(np.asarray(target, float))
     plotter.camera.up = tuple(np.asarray(up, float))
-    plotter.camera.view_angle = 30.0
+    plotter.camera.view_angle = VIEW_ANGLE_DEG
     image = plotter.screenshot(return_img=True)
     plotter.close()
     return np.asarray(image)
@@ -158,11 +221,10 @@ def signed_distance_figure(surfaces: dict[str, tuple[trimesh.Trimesh, np.ndarray
     fig, axes = plt.subplots(2, len(surfaces), figsize=(3.4 * len(surfaces), 6.2),
                              squeeze=False)
     for col, (name, (mesh, signed_m)) in enumerate(surfaces.items()):
-        lo, hi = mesh.bounds
-        target, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
         for row, elevation in enumerate((40.0, -35.0)):
             el = np.radians(elevation)
-            eye = target + 2.6 * radius * (np.cos(el) * side + np.sin(el) * up)
+            eye, target = framed_view(mesh.vertices, np.cos(el) * side + np.sin(el) * up, up,
+                                      (420, 360))
             image = render_scalar_mesh(mesh, 1000 * np.asarray(signed_m), eye, target, up,
                                        limit_mm)
             axes[row, col].imshow(image)
@@ -180,7 +242,7 @@ def signed_distance_figure(surfaces: dict[str, tuple[trimesh.Trimesh, np.ndarray
 
 
 def geometry_panels(
-    panels: dict[str, PointCloud | trimesh.Trimesh],
+    panels: dict[str, Geometry],
     eye: np.ndarray,
     target: np.ndarray,
     up: np.ndarray,
@@ -193,23 +255,21 @@ def geometry_panels(
 
 
 def panels_around(
-    panels: dict[str, PointCloud | trimesh.Trimesh],
+    panels: dict[str, Geometry],
     up: np.ndarray,
     elevation_deg: float,
     size_px: tuple[int, int] = (480, 360),
 ) -> Figure:
     """:func:`geometry_panels` seen from ``elevation_deg`` above the horizontal plane (``up``
-    is the world's up), looking at the centre of the last panel from four of its radii."""
+    is the world's up), one viewpoint for all, framed so that together they fill the
+    picture (:func:`framed_view`)."""
     from volec.geometry import horizontal_axes
 
-    last = list(panels.values())[-1]
-    points = last.xyz if isinstance(last, PointCloud) else np.asarray(last.vertices)
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    target, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
     up = np.asarray(up, float) / np.linalg.norm(up)
     side, _ = horizontal_axes(up)
     el = np.radians(elevation_deg)
-    eye = target + 4.0 * radius * (np.cos(el) * side + np.sin(el) * up)
+    points = np.vstack([geometry_points(g) for g in panels.values()])
+    eye, target = framed_view(points, np.cos(el) * side + np.sin(el) * up, up, size_px)
     return geometry_panels(panels, eye, target, up, size_px)
 
 
@@ -220,12 +280,12 @@ def cloud_grid(rows: dict[str, dict[str, np.ndarray]], elevation_deg: float = -2
     horizon (negative: from below, where completion has to fill in)."""
     colours = ["#4477aa", "#ee6677", "#228833", "#999999", "#ccbb44"]
     images, titles = [], []
+    e = np.radians(elevation_deg)
+    direction = np.array([np.cos(e), -0.3 * np.cos(e), np.sin(e)])
     for name, columns in rows.items():
-        reference = next(iter(columns.values()))
-        centre = reference.mean(axis=0)
-        radius = float(np.linalg.norm(reference - centre, axis=1).max())
-        e = np.radians(elevation_deg)
-        eye = centre + 4.2 * radius * np.array([np.cos(e), -0.3 * np.cos(e), np.sin(e)])
+        # one framing per row, on all its clouds, so they compare at one scale
+        eye, centre = framed_view(np.vstack(list(columns.values())), direction, [0, 0, 1],
+                                  size_px)
         for k, (column, xyz) in enumerate(columns.items()):
             rgb = np.tile(np.array(matplotlib.colors.to_rgb(colours[k % len(colours)])) * 255,
                           (len(xyz), 1)).astype(np.uint8)

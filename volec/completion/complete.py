@@ -3,7 +3,8 @@
 In: a :class:`~volec.pointcloud.PointCloud` of one food item (metres, any frame and
 orientation), a trained model and a :class:`CompletionConfig`. Out: a :class:`Completion`:
 the completed cloud in the input's frame (the partial's points plus the network's, which are
-coloured grey), the network's points alone, and the normalization used.
+coloured magenta, :data:`volec.pointcloud.PREDICTED_RGB`), the network's points alone, and
+the normalization used.
 
 Steps (paper section III-C): normalize (centre, unit sphere, PCA axes), resample to the
 network's input size, predict, map back with the normalization's exact inverse, then drop
@@ -29,15 +30,13 @@ from volec.completion.preprocess import (
     resample,
 )
 from volec.errors import VolecError
-from volec.pointcloud import PointCloud
+from volec.pointcloud import PREDICTED_RGB, PointCloud
 
 #: The checkpoint shipped with volec (trained by ``make retrain``, preset ``cpu``): package
 #: data, found through importlib.resources wherever volec is installed.
 SHIPPED_CHECKPOINT = Path(str(resources.files("volec.completion") / "weights"
                               / "symmcompletion_cpu.pt"))
 
-#: Colour given to the points the network adds.
-PREDICTED_RGB = (150, 150, 150)
 
 
 @dataclass(frozen=True)
@@ -101,15 +100,15 @@ def complete_cloud(partial: PointCloud, model: SymmCompletion,
 
         gap = cKDTree(partial.xyz).query(predicted)[0]
         predicted = predicted[gap > cfg.missing_only_gap_m]
-    grey = np.tile(np.array(PREDICTED_RGB, np.uint8), (len(predicted), 1))
+    magenta = np.tile(np.array(PREDICTED_RGB, np.uint8), (len(predicted), 1))
     if cfg.merge_partial:
-        rgb = None if partial.rgb is None else np.concatenate([partial.rgb, grey])
+        rgb = None if partial.rgb is None else np.concatenate([partial.rgb, magenta])
         # the partial's normals are kept; the predicted points' are unknown (NaN)
         normals = None if partial.normals is None else np.concatenate(
             [partial.normals, np.full((len(predicted), 3), np.nan)])
         cloud = PointCloud(np.concatenate([partial.xyz, predicted]), rgb, normals)
     else:
-        cloud = PointCloud(predicted, grey)
+        cloud = PointCloud(predicted, magenta)
     summary = {"partial_points": len(partial), "predicted_points": int(len(out)),
                "predicted_kept": int(len(predicted)), "points": len(cloud),
                "seconds": round(time.perf_counter() - start, 3)}

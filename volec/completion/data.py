@@ -22,6 +22,7 @@ from volec.completion.preprocess import fit_normalization, resample
 from volec.geometry import look_at_opencv
 from volec.io import write_bytes_atomic
 from volec.metrics import sample_surface, views_seeing
+from volec.progress import Progress
 from volec.synth.families import family_mesh
 
 log = logging.getLogger(__name__)
@@ -107,24 +108,21 @@ def write_dataset(shapes: list[tuple[str, int]], views: int, out_dir: Path,
     the folder name the callers choose)."""
     from concurrent.futures import ProcessPoolExecutor
 
-    from tqdm.auto import tqdm
-
     cfg = cfg or ViewConfig()
     out_dir = Path(out_dir)
     paths = [out_dir / f"{family}-{seed}.npz" for family, seed in shapes]
     todo = [(f, s, views, cfg, p) for (f, s), p in zip(shapes, paths, strict=True)
             if not p.exists()]
     if todo:
-        bar = tqdm(total=len(todo), desc="completion training data", disable=not progress)
-        if workers > 1:
-            with ProcessPoolExecutor(workers) as pool:
-                for _ in pool.map(_write_shape, todo):
+        with Progress(len(todo), "completion training data", "shapes", progress) as bar:
+            if workers > 1:
+                with ProcessPoolExecutor(workers) as pool:
+                    for _ in pool.map(_write_shape, todo):
+                        bar.update()
+            else:
+                for args in todo:
+                    _write_shape(args)
                     bar.update()
-        else:
-            for args in todo:
-                _write_shape(args)
-                bar.update()
-        bar.close()
     return paths
 
 

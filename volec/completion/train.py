@@ -29,6 +29,7 @@ from volec.completion.data import CompletionDataset, ViewConfig, write_dataset
 from volec.completion.model import PRESETS as MODEL_PRESETS
 from volec.completion.model import ModelConfig, SymmCompletion, chamfer_l1
 from volec.io import write_bytes_atomic, write_text_atomic
+from volec.progress import Progress
 from volec.synth.families import training_shapes
 
 log = logging.getLogger(__name__)
@@ -154,8 +155,6 @@ def train(cfg: TrainConfig, checkpoint: Path, data_dir: Path, progress: bool = T
           ) -> dict[str, Any]:
     """Train, validating and saving the best checkpoint every ``val_every`` steps; the log
     goes next to the checkpoint as ``.csv``. Returns the final scores."""
-    from tqdm.auto import tqdm
-
     model_cfg = MODEL_PRESETS[cfg.model]
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
@@ -168,8 +167,8 @@ def train(cfg: TrainConfig, checkpoint: Path, data_dir: Path, progress: bool = T
     log_path = Path(checkpoint).with_suffix(".csv")
     best = float("inf")
     start = time.perf_counter()
-    bar = tqdm(range(cfg.steps), desc="training", disable=not progress)
-    for step in bar:
+    bar = Progress(cfg.steps, "training", "steps", progress)
+    for step in range(cfg.steps):
         for group in optimiser.param_groups:
             group["lr"] = learning_rate(cfg, step)
         idx = rng.integers(len(train_data), size=cfg.batch_size)
@@ -194,14 +193,16 @@ def train(cfg: TrainConfig, checkpoint: Path, data_dir: Path, progress: bool = T
                     "val_cd_l1_partial": row["val_cd_l1_partial"],
                     "train_views": len(train_data), "val_views": len(val_data),
                     "elapsed_s": row["elapsed_s"]})
-            bar.set_postfix(loss=f"{loss.item():.4f}", val=f"{row['val_cd_l1']:.4f}")
+            bar.note(f"loss={loss.item():.4f} val={row['val_cd_l1']:.4f}")
         log_rows.append(row)
+        bar.update()
         if (step + 1) % 50 == 0 or last or out_of_time or "val_cd_l1" in row:
             _write_log(log_path, log_rows)
         if out_of_time:
             log.warning("stopping after %.0f minutes (max_minutes) at step %d",
                         cfg.max_minutes, step + 1)
             break
+    bar.close()
     return {"best_val_cd_l1": best, "steps": len(log_rows), "log": str(log_path)}
 
 

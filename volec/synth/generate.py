@@ -32,7 +32,6 @@ from typing import Any
 import numpy as np
 import trimesh
 from PIL import Image
-from tqdm.auto import tqdm
 
 from volec.capture import Capture, Frame, Intrinsics, write_transforms_json
 from volec.errors import ConfigError, OutputExistsError, UnknownNameError
@@ -43,6 +42,7 @@ from volec.io import (
     write_bytes_atomic,
     write_json_atomic,
 )
+from volec.progress import Progress, progress_over
 from volec.synth.render import LOOKS, LookConfig, Renderer, to_srgb8
 from volec.synth.scene import HARD_SETUPS, Scene, Setup, build_scene, hard_setup
 from volec.synth.shapes import ITEMS, item_mesh, stable_seed
@@ -246,19 +246,19 @@ def render_frames(
     """Render every pose of ``poses`` (scene frame) to (JPEG, mask PNG, packed shadow), in
     order."""
     jobs = [(i, poses[i], cfg) for i in range(len(poses))]
-    bar = tqdm(total=len(jobs), desc="render", unit="frame", disable=not progress)
     results: list[tuple[bytes, bytes, np.ndarray]] = []
-    if cfg.workers == 1 or len(jobs) < 4:
-        _init_worker(scene)
-        for job in jobs:
-            results.append(_render_frame(job))
-            bar.update()
-    else:
-        with ProcessPoolExecutor(cfg.workers, initializer=_init_worker, initargs=(scene,)) as ex:
-            for r in ex.map(_render_frame, jobs, chunksize=2):
-                results.append(r)
+    with Progress(len(jobs), "render", "frames", progress) as bar:
+        if cfg.workers == 1 or len(jobs) < 4:
+            _init_worker(scene)
+            for job in jobs:
+                results.append(_render_frame(job))
                 bar.update()
-    bar.close()
+        else:
+            with ProcessPoolExecutor(cfg.workers, initializer=_init_worker,
+                                     initargs=(scene,)) as ex:
+                for r in ex.map(_render_frame, jobs, chunksize=2):
+                    results.append(r)
+                    bar.update()
     return results
 
 
@@ -468,7 +468,7 @@ def write_benchmark(
     cfg = cfg or PRESETS["default"]
     items = items or list(ITEMS)
     done: list[Path] = []
-    for item in tqdm(items, desc="benchmark", unit="item", disable=not progress):
+    for item in progress_over(items, "benchmark", progress, "items"):
         out = Path(root) / item
         truth = out / "ground_truth" / "truth.json"
         if truth.exists() and not overwrite:
