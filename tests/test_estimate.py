@@ -51,6 +51,11 @@ def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys
     # the page a person opens says the volume, why it is not trusted, and holds the 3D view
     page = (out / "report.html").read_text()
     assert "report.html" in result["files"] and "narrow_orbit" in page
+    # bounds from the space the cameras constrained hold the estimate; 100 degrees of orbit
+    # leave much of it unknown
+    low, high = result["volume_bounds_ml"]
+    assert low <= result["volume_ml"] <= high and 0 <= result["unknown_share"] <= 1
+    assert f"{low:.1f}" in page and "bounds_s" in result["stage_seconds"]
     assert f"{result['volume_ml']:.1f} mL" in page and 'id="volec-data"' in page
     # the mesh a standard tool opens is closed and holds the volume reported
     mesh = trimesh.load(out / "mesh.ply")

@@ -33,6 +33,7 @@ BACKGROUND = np.array([244, 244, 242])
 def _record(trusted: bool = False) -> dict:
     return {
         "volume_ml": 33.51, "trusted": trusted, "completion_used": True,
+        "volume_bounds_ml": [30.2, 41.75], "unknown_share": 0.31, "high_open": False,
         "reasons": [] if trusted else [{"code": "narrow_orbit",
                                         "message": "the cameras span only 150 degrees"}],
         "warnings": [] if trusted else ["the cameras span only 150 degrees <b>"],
@@ -90,6 +91,7 @@ def test_the_report_holds_the_geometry_and_names_no_outside_resource():
     assert layers["observed"]["count"] == len(scene.observed)
     # what the record says reaches the page, escaped
     assert "33.5 mL" in page and "narrow_orbit" in page
+    assert "<b>30.2</b> and <b>41.8</b> mL" in page and "31 %" in page
     assert "&lt;b&gt;" in page and "/data/apple&lt;/script&gt;" in page
 
 

@@ -25,12 +25,14 @@ TRIGGERS = {
     "implausible_volume": {"volume_ml": 25000.0},
     "unusable_masks": {"unusable_masks": 9},
     "far_points": {"far_point_fraction": 0.05},
+    "unknown_space": {"unknown_share": 0.4},
 }
 
 
 def test_good_facts_are_trusted():
     assert assess(GOOD) == []
     assert assess(replace(GOOD, completion_share=None)) == []  # no completion: nothing to say
+    assert assess(replace(GOOD, unknown_share=0.1)) == []
 
 
 @pytest.mark.parametrize("code", sorted(TRIGGERS))

@@ -11,7 +11,9 @@ re-run reuses the finished SfM, dense and masking stages, and a finished estimat
   and reasons, the frames with the masks' outlines, the clouds and the mesh in a 3D viewer, the
   stage times and warnings; opens offline in any browser;
 - ``report.md`` with pictures in ``report/``;
-- ``result.json``: ``volume_ml``, ``trusted`` and the ``reasons`` it is not (:mod:`volec.trust`),
+- ``result.json``: ``volume_ml``, ``volume_bounds_ml`` and ``unknown_share`` (how far the volume
+  may be off from what no camera constrained, :mod:`volec.space`), ``trusted`` and the
+  ``reasons`` it is not (:mod:`volec.trust`),
   warnings, frames used, per-stage wall time, the support plane, the scale's source, the
   config and what the result was made from (:mod:`volec.provenance`). Written last, listing
   the digests of the other files: a folder with a current ``result.json`` holds a finished
@@ -76,6 +78,7 @@ from volec.report import ReportScene, write_report_html
 from volec.scale import ScaleCheck, ScaleConfig, require_metric
 from volec.segment import MaskSet, SegmentConfig, given_masks
 from volec.sfm import SfmConfig
+from volec.space import SpaceConfig, VolumeBounds, observed_space, volume_bounds
 from volec.trust import Reason, TrustConfig, TrustFacts, assess
 from volec.volume import volume_ml
 
@@ -121,6 +124,9 @@ class EstimateConfig:
     completion_share_pitch_m: float = 0.002
     """Grid spacing of the interior samples that measure the share of the volume decided by
     the network's points."""
+    space: SpaceConfig = field(default_factory=SpaceConfig)
+    """How the space around the food is sorted into empty, food and unknown for the volume
+    bounds (:mod:`volec.space`)."""
 
 
 PRESETS: dict[str, EstimateConfig] = {
@@ -162,6 +168,10 @@ class Estimate:
     orbit_coverage_deg: float
     view_up: np.ndarray
     """The support plane's normal, else the capture's up direction, else +z."""
+    bounds: VolumeBounds
+    """How far the volume may be off from what nobody saw (:mod:`volec.space`)."""
+    bounds_s: float = 0.0
+    """Wall time of the bounds, seconds."""
 
     @property
     def trusted(self) -> bool:
@@ -275,6 +285,17 @@ def _notes(capture: Capture, stages: StageResults, food: FoodMesh, scale: ScaleC
     return notes
 
 
+def estimate_bounds(food: FoodMesh, stages: StageResults,
+                    silhouettes: list[SilhouetteView] | None, cfg: SpaceConfig) -> VolumeBounds:
+    """The bounds of ``food``'s volume: what the cameras saw empty (through the scene cloud's
+    depth and the silhouettes), what lies behind what they saw, and what nobody constrained
+    (:func:`volec.space.observed_space`)."""
+    space = observed_space(stages.masked.cloud, silhouettes or [], food.support, cfg,
+                           scene=stages.dense.cloud)
+    inside = food.mesh.mesh.contains(space.points())
+    return volume_bounds(space, inside, food.volume_ml)
+
+
 def estimate_from_stages(capture: Capture, stages: StageResults, model: SymmCompletion | None,
                          cfg: EstimateConfig, silhouettes: list[SilhouetteView] | None = None,
                          scale: ScaleCheck | None = None) -> Estimate:
@@ -289,6 +310,9 @@ def estimate_from_stages(capture: Capture, stages: StageResults, model: SymmComp
     sfm = stages.sfm
     centres = sfm.T_world_from_cam[sfm.registered][:, :3, 3]
     coverage = orbit_coverage_deg(centres, food.mesh.mesh.centroid, view_up)
+    start = time.perf_counter()
+    bounds = estimate_bounds(food, stages, silhouettes, cfg.space)
+    bounds_s = round(time.perf_counter() - start, 2)
     report = food.mesh.report
     facts = TrustFacts(
         frames=len(capture), registered=int(sfm.registered.sum()),
@@ -300,11 +324,12 @@ def estimate_from_stages(capture: Capture, stages: StageResults, model: SymmComp
                               ("scale_drift_model", "scale_short_baseline", "scale_sim3_all")),
         unusable_masks=len(stages.masked.report.get("unusable_masks", {})),
         far_point_fraction=report.get("far_points_dropped", 0) / max(report["points_in"], 1),
+        unknown_share=bounds.unknown_share,
     )
     reasons = assess(facts, cfg.trust)
     warnings = [r.message for r in reasons] + _notes(capture, stages, food, scale,
                                                      model is not None)
-    return Estimate(food, reasons, warnings, coverage, view_up)
+    return Estimate(food, reasons, warnings, coverage, view_up, bounds, bounds_s)
 
 
 def report_pictures(result: FoodMesh, up: np.ndarray, folder: Path, masked: PointCloud
@@ -348,6 +373,15 @@ def report_scene(est: Estimate, stages: StageResults) -> ReportScene:
                        est.view_up)
 
 
+def bounds_sentence(result: dict[str, Any]) -> str:
+    """What the volume bounds of a ``result.json`` record say, in one sentence."""
+    low, high = result["volume_bounds_ml"]
+    return (f"Bounds from what the cameras saw: {low:.1f} - {high:.1f} mL"
+            f"{' or more' if result['high_open'] else ''} (the estimate with the space no "
+            "camera constrained taken as empty, and as food); "
+            f"{100 * result['unknown_share']:.0f} % of the estimate lies in that space.")
+
+
 def report_markdown(result: dict[str, Any], pictures: dict[str, Path], out_dir: Path) -> str:
     """The human-readable report of an estimate."""
     trust = ("**trusted**" if result["trusted"] else
@@ -357,6 +391,8 @@ def report_markdown(result: dict[str, Any], pictures: dict[str, Path], out_dir: 
         "",
         f"**Volume: {result['volume_ml']:.1f} mL** "
         f"({'with' if result['completion_used'] else 'without'} completion), {trust}",
+        "",
+        bounds_sentence(result),
         "",
         f"- capture: `{result['capture']}`",
         f"- frames used: {result['frames']['registered']} of {result['frames']['total']}",
@@ -393,6 +429,7 @@ def estimate_record(capture: Capture, stages: StageResults, est: Estimate, cfg: 
     food = est.food
     return {
         "volume_ml": food.volume_ml,
+        **est.bounds.record(),
         "trusted": est.trusted,
         "reasons": [r.record() for r in est.reasons],
         "warnings": est.warnings,
@@ -501,6 +538,7 @@ def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = N
         seconds["silhouettes_s"] = round(time.perf_counter() - t, 2)
         est = estimate_from_stages(capture, stages, model, cfg, silhouettes, scale)
         seconds.update(est.food.seconds)
+        seconds["bounds_s"] = est.bounds_s
         step(progress, "writing the clouds, the mesh and the report")
         t = time.perf_counter()
         files = write_outputs(out_dir, est, capture, stages)

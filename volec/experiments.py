@@ -536,6 +536,8 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
                     f"{tag}_reasons": ",".join(r.code for r in est.reasons),
                     f"{tag}_warnings": len(est.warnings),
                     f"{tag}_completion_share": made.completion_share,
+                    f"{tag}_low_ml": est.bounds.low_ml, f"{tag}_high_ml": est.bounds.high_ml,
+                    f"{tag}_unknown_share": est.bounds.unknown_share,
                     **mesh_offset_scores(made.mesh.mesh, truth_mesh, prefix=f"{tag}_mesh"),
                     **{f"{tag}_{k}": v for k, v in made.seconds.items()}}
         return row

@@ -138,6 +138,17 @@ def _trust_html(record: dict[str, Any]) -> str:
     return f'<div class="trust bad"><p>Not trusted, because:</p><ul>{items}</ul></div>'
 
 
+def _bounds_html(record: dict[str, Any]) -> str:
+    if "volume_bounds_ml" not in record:
+        return ""
+    low, high = record["volume_bounds_ml"]
+    more = " or more" if record.get("high_open") else ""
+    return (f'<p class="bounds">Between <b>{low:.1f}</b> and <b>{high:.1f}</b> mL{more} from '
+            "what the cameras saw: the estimate with the space no camera constrained taken as "
+            f"empty, and as food. {100 * record['unknown_share']:.0f} % of the estimate lies in "
+            "that space, where only the shape prior decides.</p>")
+
+
 def _facts_html(record: dict[str, Any]) -> str:
     frames = record["frames"]
     mesh = record["mesh"]
@@ -221,6 +232,7 @@ def report_html(record: dict[str, Any], scene: ReportScene, pictures: dict[str, 
 <h1>volec estimate</h1>
 <p class="volume">{record['volume_ml']:.1f} mL</p>
 <p>{completion} completion</p>
+{_bounds_html(record)}
 {_trust_html(record)}
 {_facts_html(record)}
 <h2>Warnings</h2>{_list_html(record['warnings'])}

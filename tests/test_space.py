@@ -1,0 +1,119 @@
+"""Space around the food: empty where the cameras saw through, food behind what they saw,
+unknown where nobody looked; the bounds it gives an estimate, against a sphere's volume."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.test_meshing import _sphere_silhouette
+from volec.capture import Intrinsics
+from volec.geometry import look_at_opencv
+from volec.meshing import SupportPlane, silhouette_view
+from volec.pointcloud import PointCloud
+from volec.space import (
+    EMPTY,
+    FOOD,
+    UNKNOWN,
+    SpaceConfig,
+    SpaceGrid,
+    observed_space,
+    volume_bounds,
+)
+
+R = 0.03
+CENTRE = np.array([0.0, 0.0, R])
+TABLE = SupportPlane((0.0, 0.0, 1.0), 0.0, 1000, 0.0)
+INTR = Intrinsics(width=320, height=240, fx=300.0, fy=300.0, cx=160.0, cy=120.0)
+TRUTH_ML = 4 / 3 * np.pi * R**3 * 1e6
+
+
+def _scene(arc_deg: float) -> tuple[PointCloud, list]:
+    """A sphere resting on a table, filmed from 24 cameras over ``arc_deg`` of azimuth at
+    20-50 degrees of elevation; the observed cloud is what those cameras see of it (points
+    facing at least one camera, above a third of its height)."""
+    rng = np.random.default_rng(3)
+    d = rng.normal(size=(60000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    views, eyes = [], []
+    for k in range(24):
+        azimuth = np.radians(arc_deg) * k / (24 if arc_deg >= 360 else 23)
+        elevation = np.radians(20.0 + 30.0 * (k % 2))
+        eye = CENTRE + 0.3 * np.array([np.cos(elevation) * np.cos(azimuth),
+                                       np.cos(elevation) * np.sin(azimuth), np.sin(elevation)])
+        T = look_at_opencv(eye, CENTRE, np.array([0.0, 0.0, 1.0]))
+        views.append(silhouette_view(_sphere_silhouette(INTR, T, CENTRE, R), INTR, T))
+        eyes.append(eye)
+    surface = CENTRE + R * d
+    facing = np.zeros(len(d), bool)
+    for eye in eyes:
+        facing |= np.einsum("ij,ij->i", eye - surface, d) > 0.5 * np.linalg.norm(
+            eye - surface, axis=1)
+    seen = facing & (d[:, 2] > -0.35)
+    return PointCloud(surface[seen], None, d[seen]), views
+
+
+def _inside_sphere(points: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(points - CENTRE, axis=1) < R
+
+
+def _sorted_space(arc_deg: float) -> tuple[SpaceGrid, np.ndarray, np.ndarray, np.ndarray]:
+    """The space of :func:`_scene`, its grid points, their states and distances to the
+    sphere's centre."""
+    cloud, views = _scene(arc_deg)
+    space = observed_space(cloud, views, TABLE, SpaceConfig())
+    points = space.points()
+    return space, points, space.state.reshape(-1), np.linalg.norm(points - CENTRE, axis=1)
+
+
+def _azimuth_deg(points: np.ndarray) -> np.ndarray:
+    rel = points - CENTRE
+    return np.degrees(np.arctan2(rel[:, 1], rel[:, 0])) % 360
+
+
+def test_a_full_orbit_leaves_little_unknown_and_its_bounds_hold_the_truth():
+    space, points, states, radius = _sorted_space(360.0)
+    assert (states[radius < 0.5 * R] == FOOD).all()  # the inside of a seen item is food
+    assert (states[(radius > 1.1 * R) & (points[:, 2] > 0)] == EMPTY).mean() > 0.99
+    assert (states[points[:, 2] < -0.002] == EMPTY).all()  # nothing below the table
+    # the exact solid as the estimate: most of it known (the unknown part is the gap under
+    # the sphere that no camera saw), and the bounds hold the truth
+    bounds = volume_bounds(space, radius < R, TRUTH_ML)
+    assert bounds.unknown_share < 0.2 and bounds.empty_share < 0.05
+    assert bounds.low_ml <= TRUTH_ML <= bounds.high_ml
+    assert bounds.high_ml - bounds.low_ml < 0.25 * TRUTH_ML
+    assert not bounds.high_open
+
+
+def test_a_half_orbit_leaves_the_far_side_unknown_and_the_bounds_say_so():
+    space, points, states, radius = _sorted_space(180.0)
+    azimuth = _azimuth_deg(points)
+    # cameras at azimuths 0-180 and stereo on surfaces seen within 60 degrees leave the side
+    # facing azimuth 240-300 unseen: just inside the surface there, space is unknown; just
+    # inside the seen surface it is food
+    shell = (np.abs(radius - 0.85 * R) < 0.003) & (points[:, 2] > R)
+    far = shell & (azimuth > 240) & (azimuth < 300)
+    near = shell & (azimuth > 60) & (azimuth < 120)
+    assert (states[far] == UNKNOWN).mean() > 0.3
+    assert (states[near] == FOOD).mean() > 0.9
+    assert not (states[far] == EMPTY).any()  # never seen through: not empty
+    full = volume_bounds(space, radius < R, TRUTH_ML)
+    assert full.unknown_share > 0.3  # the shape prior decides much of it: a trust reason
+    assert full.low_ml <= TRUTH_ML <= full.high_ml
+    # an estimate that left out all the unknown space (closed the unseen side tightly) is
+    # told that the truth may lie above it, by as much as it left out
+    seen_only = (radius < R) & (states != UNKNOWN)
+    left_out_ml = ((radius < R) & (states == UNKNOWN)).sum() * space.cell_ml
+    tight = volume_bounds(space, seen_only, TRUTH_ML - left_out_ml)
+    assert tight.unknown_share == 0 and tight.low_ml == pytest.approx(TRUTH_ML - left_out_ml)
+    assert tight.high_ml >= TRUTH_ML
+
+
+def test_without_views_nothing_is_seen_empty_but_below_the_table():
+    cloud, _ = _scene(360.0)
+    space = observed_space(cloud, [], TABLE, SpaceConfig(pitch_m=0.003))
+    points = space.points()
+    states = space.state.reshape(-1)
+    assert (states[points[:, 2] < -0.003] == EMPTY).all()
+    assert np.isin(states, [EMPTY, FOOD, UNKNOWN]).all()
+    assert pytest.approx(space.cell_ml) == 0.003**3 * 1e6

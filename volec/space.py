@@ -1,0 +1,359 @@
+"""Space: what the cameras saw empty around the food, what is food, what nobody saw.
+
+In: the observed food cloud (masked, with normals facing the cameras), the food silhouettes
+(:func:`volec.meshing.silhouette_views`), optionally the support plane, and a
+:class:`SpaceConfig`. Out: a :class:`SpaceGrid`: a regular grid over the food's surroundings
+whose points are :data:`EMPTY`, :data:`FOOD` or :data:`UNKNOWN`; :func:`volume_bounds` turns it
+into the bounds every estimate reports beside its volume: the estimate with its unknown part
+taken as empty, and with all unknown space taken as food.
+
+- **Empty**: space a camera saw through. A grid point outside the food masks of at least
+  ``min_views`` views (the visual hull), or nearer to at least ``min_views`` cameras than the
+  surface they saw there (the observed cloud drawn into each view as a depth map, only the
+  points facing that camera, so the far side does not show through gaps), or just in front of
+  the observed surface (within ``surface_reach_m`` of observed points, on their outer side).
+  Below the support plane is empty too.
+- **Food**: space enclosed by what was seen: just behind the observed surface, or a point
+  from which a ray in each grid direction (26, or with a support plane those not pointing
+  down: see ``SpaceConfig.max_ray_down``) meets observed surface or the support plane before
+  it meets empty space. Inside a fully seen item every point is food.
+- **Unknown**: the rest: not seen through, but open to empty space across a part of the
+  surface nobody reconstructed: the far side of a half orbit, the gap under an overhang, a
+  faint patch dense stereo missed.
+
+When unknown space reaches the grid's border the upper bound is not closed (``high_open``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import product
+from typing import Any
+
+import numpy as np
+
+from volec.meshing import SilhouetteView, SupportPlane, silhouette_field
+from volec.pointcloud import PointCloud
+
+EMPTY, FOOD, UNKNOWN = 0, 1, 2
+"""The states of a grid point."""
+
+
+@dataclass(frozen=True)
+class SpaceConfig:
+    """How space is sorted into empty, food and unknown."""
+
+    pitch_m: float = 0.002
+    """Grid spacing, metres."""
+    margin_share: float = 0.25
+    """The grid spans the food cloud grown by this share of its extent on every side (at
+    least ``min_margin_m``)."""
+    min_margin_m: float = 0.01
+    min_views: int = 2
+    """Views that must agree before a point is empty (one bad mask or pose cannot empty food)."""
+    silhouette_margin_px: float = 1.0
+    """A point is outside a view's mask when it projects more than this outside it."""
+    depth_scale: float = 0.25
+    """The observed cloud is drawn into each view at this share of its resolution."""
+    depth_thinning: float = 0.75
+    """The cloud drawn into the views is thinned to one point per voxel of this share of
+    ``pitch_m`` (enough for a depth map at ``depth_scale``, at a fraction of the cost)."""
+    depth_tolerance_m: float = 0.004
+    """A point is in front of the surface a camera saw when nearer to it by more than this."""
+    surface_reach_m: float = 0.003
+    """Points this near to the observed cloud take their side from its normals: in front is
+    empty, behind is food."""
+    surface_neighbours: int = 8
+    """Observed points whose normals decide that side."""
+    front_margin_m: float = 0.001
+    """Only points farther than this in front of the observed surface are empty by its side
+    (the cloud is noisy and a mesh through it is smoothed: nearer ones are left open)."""
+    plug_m: float = 0.004
+    """For the enclosure test the observed surface is thickened by this much, so that the
+    gaps dense stereo leaves between its patches (smaller than about twice this) do not let
+    the rays out; a larger unreconstructed patch stays open."""
+    max_ray_down: float = 0.2
+    """With a support plane, enclosure is tested along the grid directions that point up,
+    across or down by less than this sine of the angle below the horizontal: no camera sees
+    the underside, so a ray going down leaves through it into space nobody saw (the gap
+    between a round item and the plate) however well the rest was seen, and the plane itself
+    closes the food from below."""
+
+
+@dataclass(frozen=True)
+class SpaceGrid:
+    """The states of the grid points ``lower + pitch_m * (i, j, k)``."""
+
+    lower: np.ndarray
+    """(3,) the first grid point, metres."""
+    pitch_m: float
+    state: np.ndarray
+    """(I, J, K) int8: :data:`EMPTY`, :data:`FOOD` or :data:`UNKNOWN`."""
+
+    @property
+    def cell_ml(self) -> float:
+        """The volume each grid point stands for, mL."""
+        return self.pitch_m ** 3 * 1e6
+
+    @property
+    def upper_open(self) -> bool:
+        """True when unknown space reaches the grid's border (the upper bound is then only
+        what the grid holds)."""
+        s = self.state
+        faces = (s[0], s[-1], s[:, 0], s[:, -1], s[:, :, 0], s[:, :, -1])
+        return any(bool((f == UNKNOWN).any()) for f in faces)
+
+    def points(self) -> np.ndarray:
+        """(N, 3) every grid point, metres, in the order of ``state.ravel()``."""
+        axes = [self.lower[i] + self.pitch_m * np.arange(n) for i, n in enumerate(self.state.shape)]
+        return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+
+    def states_at(self, points: np.ndarray) -> np.ndarray:
+        """(N,) the state of the grid point nearest to each of ``points`` (EMPTY beyond the
+        grid)."""
+        index = np.round((np.asarray(points, float) - self.lower) / self.pitch_m).astype(int)
+        shape = np.asarray(self.state.shape)
+        inside = ((index >= 0) & (index < shape)).all(axis=1)
+        out = np.full(len(index), EMPTY, np.int8)
+        out[inside] = self.state[tuple(index[inside].T)]
+        return out
+
+
+
+def grid_frame(cloud: PointCloud, support: SupportPlane | None, cfg: SpaceConfig
+               ) -> tuple[np.ndarray, tuple[int, int, int]]:
+    """(lower corner, shape) of the grid around ``cloud``, reaching down to the support."""
+    span = cloud.xyz
+    if support is not None:
+        span = np.vstack([span, span - np.outer(support.height_m(span), support.normal)])
+    extent = span.max(axis=0) - span.min(axis=0)
+    margin = np.maximum(cfg.margin_share * extent, cfg.min_margin_m)
+    lower = span.min(axis=0) - margin
+    shape = np.ceil((span.max(axis=0) + margin - lower) / cfg.pitch_m).astype(int) + 1
+    return lower, (int(shape[0]), int(shape[1]), int(shape[2]))
+
+
+def observed_depth(cloud: PointCloud, view: SilhouetteView, scale: float) -> np.ndarray:
+    """(h, w) the depth of the observed surface in ``view`` at ``scale`` of its resolution
+    (inf where no point fell): the nearest of the points facing the camera, widened by a
+    3x3 minimum so that the gaps between points do not let the far side through."""
+    from scipy import ndimage
+
+    T = view.T_cam_from_world
+    cam = cloud.xyz @ T[:3, :3].T + T[:3, 3]
+    facing = np.ones(len(cam), bool)
+    if cloud.normals is not None:
+        normals_cam = cloud.normals @ T[:3, :3].T
+        facing = np.einsum("ij,ij->i", normals_cam, -cam) > 0
+    h, w = view.signed_distance_px.shape
+    small = view.intrinsics.scaled(scale)
+    dh, dw = small.height, small.width
+    uv = small.project(cam)
+    with np.errstate(invalid="ignore"):
+        ok = facing & (cam[:, 2] > 0) & np.isfinite(uv).all(axis=1)
+        u, v = np.round(uv[ok, 0]).astype(int), np.round(uv[ok, 1]).astype(int)
+    z = cam[ok, 2]
+    inside = (u >= 0) & (u < dw) & (v >= 0) & (v < dh)
+    depth = np.full((dh, dw), np.inf)
+    np.minimum.at(depth, (v[inside], u[inside]), z[inside])
+    return ndimage.minimum_filter(depth, size=3, mode="nearest")
+
+
+def seen_through(points: np.ndarray, cloud: PointCloud, views: list[SilhouetteView],
+                 cfg: SpaceConfig) -> np.ndarray:
+    """(N,) how many views saw the observed surface beyond each point (it is empty)."""
+    count = np.zeros(len(points), np.int32)
+    for view in views:
+        depth = observed_depth(cloud, view, cfg.depth_scale)
+        small = view.intrinsics.scaled(cfg.depth_scale)
+        T = view.T_cam_from_world
+        cam = points @ T[:3, :3].T + T[:3, 3]
+        uv = small.project(cam)
+        with np.errstate(invalid="ignore"):
+            ok = (cam[:, 2] > 0) & np.isfinite(uv).all(axis=1)
+            u = np.round(np.where(ok, uv[:, 0], -1)).astype(int)
+            v = np.round(np.where(ok, uv[:, 1], -1)).astype(int)
+        ok &= (u >= 0) & (u < small.width) & (v >= 0) & (v < small.height)
+        surface = np.full(len(points), np.inf)
+        surface[ok] = depth[v[ok], u[ok]]
+        count += (cam[:, 2] < surface - cfg.depth_tolerance_m).astype(np.int32)
+    return count
+
+
+def surface_side(points: np.ndarray, cloud: PointCloud, cfg: SpaceConfig) -> np.ndarray:
+    """(N,) +1 for points just in front of the observed surface (by more than
+    ``front_margin_m``), -1 just behind it, 0 for the others (farther than ``surface_reach_m``
+    from it, or a cloud without normals)."""
+    from scipy.spatial import cKDTree
+
+    side = np.zeros(len(points), np.int8)
+    if cloud.normals is None or not len(cloud):
+        return side
+    tree = cKDTree(cloud.xyz)
+    distance, _ = tree.query(points, distance_upper_bound=cfg.surface_reach_m)
+    near = np.flatnonzero(np.isfinite(distance))
+    if not len(near):
+        return side
+    k = min(cfg.surface_neighbours, len(cloud))
+    _, idx = tree.query(points[near], k=k)
+    idx = idx.reshape(len(near), k)
+    offsets = points[near, None, :] - cloud.xyz[idx]
+    along = np.einsum("nkj,nkj->n", offsets, cloud.normals[idx]) / k
+    side[near] = np.where(along > cfg.front_margin_m, 1, np.where(along < 0, -1, 0))
+    return side
+
+
+def ray_directions(up: np.ndarray | None, max_down: float) -> list[tuple[int, int, int]]:
+    """The 26 grid directions, less those pointing down more steeply than ``max_down`` (the
+    sine of the angle below the horizontal) when ``up`` is known."""
+    out = []
+    for d in product((-1, 0, 1), repeat=3):
+        if d == (0, 0, 0):
+            continue
+        if up is not None and np.dot(d, up) / np.linalg.norm(d) < -max_down:
+            continue
+        out.append(d)
+    return out
+
+
+def _enclosed(stop: np.ndarray, open_: np.ndarray, directions: list[tuple[int, int, int]]
+              ) -> np.ndarray:
+    """True where a ray in each of ``directions`` meets a ``stop`` point before it leaves the
+    ``open_`` points (or the grid)."""
+    enclosed = np.ones(stop.shape, bool)
+    for d in directions:
+        enclosed &= _reaches_stop(stop, open_, d)
+    return enclosed
+
+
+def _reaches_stop(stop: np.ndarray, open_: np.ndarray, d: tuple[int, int, int]) -> np.ndarray:
+    """``hit[p] = stop[p] or (open_[p] and hit[p + d])``, beyond the grid False: swept layer
+    by layer along an axis that ``d`` moves on, from the far end."""
+    axis = next(i for i in range(3) if d[i] != 0)
+    order = range(stop.shape[axis] - 1, -1, -1) if d[axis] > 0 else range(stop.shape[axis])
+    hit = np.zeros(stop.shape, bool)
+    rest = [i for i in range(3) if i != axis]
+    for layer in order:
+        following = layer + d[axis]
+        ahead = np.zeros([stop.shape[i] for i in rest], bool)
+        if 0 <= following < stop.shape[axis]:
+            ahead = _shifted(np.take(hit, following, axis=axis), d[rest[0]], d[rest[1]])
+        here = [slice(None)] * 3
+        here[axis] = layer
+        hit[tuple(here)] = stop[tuple(here)] | (open_[tuple(here)] & ahead)
+    return hit
+
+
+def _shifted(layer: np.ndarray, da: int, db: int) -> np.ndarray:
+    """``out[i, j] = layer[i + da, j + db]``, False beyond the layer."""
+    out = np.zeros_like(layer)
+    na, nb = layer.shape
+    out[max(0, -da):na - max(0, da), max(0, -db):nb - max(0, db)] = \
+        layer[max(0, da):na - max(0, -da), max(0, db):nb - max(0, -db)]
+    return out
+
+
+def outside_hull(points: np.ndarray, views: list[SilhouetteView], cfg: SpaceConfig
+                 ) -> np.ndarray:
+    """(N,) True for points outside the food masks of ``min_views`` views. A dozen of the
+    views first: what they carve, all of them carve too, and most of the grid goes there."""
+    few = views[::max(1, len(views) // 12)]
+    out = silhouette_field(points, few, cfg.silhouette_margin_px, cfg.min_views) > 0
+    rest = np.flatnonzero(~out)
+    out[rest] = silhouette_field(points[rest], views, cfg.silhouette_margin_px,
+                                 cfg.min_views) > 0
+    return out
+
+
+def thinned(cloud: PointCloud, voxel_m: float) -> PointCloud:
+    """One point of ``cloud`` per occupied voxel of ``voxel_m``: enough to draw its depth
+    at a coarse resolution, at a fraction of the cost."""
+    keys = np.floor(cloud.xyz / voxel_m).astype(np.int64)
+    _, first = np.unique(keys, axis=0, return_index=True)
+    return cloud.subset(np.sort(first))
+
+
+def _thickened(mask: np.ndarray, radius_steps: float) -> np.ndarray:
+    """``mask`` grown by a ball of ``radius_steps`` grid steps."""
+    from scipy import ndimage
+
+    r = int(np.floor(radius_steps))
+    if r < 1:
+        return mask
+    offsets = np.arange(-r, r + 1)
+    ball = (offsets[:, None, None] ** 2 + offsets[None, :, None] ** 2
+            + offsets[None, None, :] ** 2) <= radius_steps ** 2
+    return ndimage.binary_dilation(mask, structure=ball)
+
+
+def observed_space(cloud: PointCloud, views: list[SilhouetteView],
+                   support: SupportPlane | None = None, cfg: SpaceConfig | None = None,
+                   scene: PointCloud | None = None) -> SpaceGrid:
+    """Sort the space around the observed food ``cloud`` into empty, food and unknown (see the
+    module docstring). The depth the cameras saw is that of ``scene`` (the whole dense
+    cloud: the plate seen beside the food empties the space in front of it) when given, else
+    of the food cloud."""
+    cfg = cfg or SpaceConfig()
+    lower, shape = grid_frame(cloud, support, cfg)
+    grid = SpaceGrid(lower, cfg.pitch_m, np.zeros(shape, np.int8))
+    points = grid.points()
+    below = (support.height_m(points) < 0) if support is not None else np.zeros(len(points), bool)
+    empty = np.zeros(len(points), bool)
+    if views:
+        empty = outside_hull(points, views, cfg)
+        candidates = np.flatnonzero(~empty & ~below)
+        seen = thinned(scene if scene is not None else cloud, cfg.depth_thinning * cfg.pitch_m)
+        empty[candidates] |= seen_through(points[candidates], seen, views,
+                                          cfg) >= cfg.min_views
+    side = surface_side(points, cloud, cfg)
+    empty |= side > 0
+    behind = (side < 0) & ~below & ~empty
+    empty &= ~below
+    stop = _thickened(behind.reshape(shape), cfg.plug_m / cfg.pitch_m) | below.reshape(shape)
+    open_ = ~(empty | below).reshape(shape)
+    up = None if support is None else np.asarray(support.normal, float)
+    food = _enclosed(stop, open_, ray_directions(up, cfg.max_ray_down)) & open_
+    state = np.where(food, FOOD, np.where(open_, UNKNOWN, EMPTY)).astype(np.int8)
+    return SpaceGrid(lower, cfg.pitch_m, state)
+
+
+@dataclass(frozen=True)
+class VolumeBounds:
+    """An estimate's volume bounds from the space around it."""
+
+    low_ml: float
+    """The estimate less its part in unknown space (all of that taken as empty)."""
+    high_ml: float
+    """The estimate plus the unknown space outside it (all of that taken as food)."""
+    unknown_share: float
+    """Share of the estimate's volume in unknown space: decided by the shape prior alone."""
+    empty_share: float
+    """Share of the estimate's volume in space the cameras saw empty."""
+    high_open: bool
+    """Unknown space reaches the grid's border: ``high_ml`` counts only what the grid holds."""
+
+    def record(self) -> dict[str, Any]:
+        """JSON-able form (``volume_bounds_ml`` as [low, high])."""
+        return {"volume_bounds_ml": [round(self.low_ml, 2), round(self.high_ml, 2)],
+                "unknown_share": round(self.unknown_share, 4),
+                "empty_share": round(self.empty_share, 4), "high_open": self.high_open}
+
+
+def volume_bounds(space: SpaceGrid, inside: np.ndarray, volume_ml: float) -> VolumeBounds:
+    """The bounds of an estimate of ``volume_ml`` whose solid holds the grid points flagged
+    ``inside`` (same order as :meth:`SpaceGrid.points`).
+
+    Where the cameras saw the surface the estimate's own surface stands (its uncertainty
+    there is the cloud's noise, a fraction of a millimetre); only unknown space is open
+    either way."""
+    inside = np.asarray(inside, bool).reshape(-1)
+    states = space.state.reshape(-1)
+    n_inside = max(int(inside.sum()), 1)
+    unknown_in = int((inside & (states == UNKNOWN)).sum())
+    unknown_out = int((~inside & (states == UNKNOWN)).sum())
+    return VolumeBounds(
+        low_ml=volume_ml - unknown_in * space.cell_ml,
+        high_ml=volume_ml + unknown_out * space.cell_ml,
+        unknown_share=unknown_in / n_inside,
+        empty_share=int((inside & (states == EMPTY)).sum()) / n_inside,
+        high_open=space.upper_open)
