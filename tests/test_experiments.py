@@ -13,6 +13,19 @@ def test_map_items_in_parallel_returns_the_rows_in_job_order():
     assert map_items(dict, jobs, labels, workers=1, progress=False) == expected
 
 
+def _squares_in_processes(n: int) -> dict:
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(2) as pool:
+        return {"squares": list(pool.map(pow, range(n), [2] * n))}
+
+
+def test_an_item_may_start_processes_of_its_own():
+    # rendering a capture inside a parallel item uses a process pool: the workers must allow it
+    rows = map_items(_squares_in_processes, [(3,), (4,)], ["a", "b"], workers=2, progress=False)
+    assert rows == [{"squares": [0, 1, 4]}, {"squares": [0, 1, 4, 9]}]
+
+
 def test_cached_row_recomputes_only_when_the_key_changes(tmp_path):
     calls = []
 

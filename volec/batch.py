@@ -118,11 +118,15 @@ def estimate_one(capture_path: str, out_dir: str, cfg: BatchConfig, threads: int
 
 def local_cluster(workers: int):  # -> (dask.distributed.Client, LocalCluster)
     """A local Dask cluster of ``workers`` spawned processes, each running one task at a
-    time (torch, open3d and COLMAP hold thread pools that a fork would copy half-made)."""
+    time (torch, open3d and COLMAP hold thread pools that a fork would copy half-made). The
+    workers are not daemons, so that a task may start processes of its own (rendering a
+    capture does)."""
+    import dask
     from dask.distributed import Client, LocalCluster
 
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=logging.WARNING)
+    with dask.config.set({"distributed.worker.daemon": False}):
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.WARNING)
     return Client(cluster), cluster
 
 
