@@ -36,6 +36,7 @@ items = ["apple", "banana", "chocolate_cake"]
 shown_item = "banana"
 
 # %%
+import numpy as np
 import pandas as pd
 
 from volec.capture import read_transforms_json
@@ -46,7 +47,7 @@ from volec.metrics import distances_to_surface
 from volec.paths import experiment_dir, figures_dir
 from volec.synth import load_ground_truth_mesh, load_truth
 from volec.tables import write_table
-from volec.viz import distance_histogram, geometry_panels, save_figure
+from volec.viz import distance_histogram, framed_view, geometry_panels, save_figure
 
 # %% [markdown]
 # ## Accuracy, completeness and time
@@ -67,7 +68,7 @@ table
 # %% [markdown]
 # ## One item: scene cloud, masked food cloud, true surface
 #
-# Seen from the first frame's camera.
+# Seen from the first frame's camera's side, framed on the food.
 
 # %%
 item = chosen[0] if quick else shown_item
@@ -77,10 +78,12 @@ food = load_masking(out / "work").cloud
 mesh = load_ground_truth_mesh(out)
 exact = read_transforms_json(out / "ground_truth" / "transforms_exact.json",
                              check_image_sizes=False)
+up = load_truth(out)["world_up"]
+eye, target = framed_view(np.vstack([food.xyz, mesh.vertices]),
+                          exact.frames[0].camera_centre - mesh.bounds.mean(axis=0), up, (480, 360))
 fig = geometry_panels(
     {"scene cloud": scene, "masked food cloud": food, "true surface": mesh},
-    eye=exact.frames[0].camera_centre, target=mesh.bounds.mean(axis=0),
-    up=load_truth(out)["world_up"],
+    eye=eye, target=target, up=up,
 )
 save_figure(fig, figures_dir() / "dense_masked_cloud.png")
 

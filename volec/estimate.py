@@ -210,6 +210,14 @@ def completion_share(mesh: trimesh.Trimesh, cloud: PointCloud, observed_points: 
     return float(np.mean(nearest >= observed_points))
 
 
+def support_scene(stages: StageResults, cfg: SupportConfig) -> PointCloud:
+    """The points the support plane is sought in: the dense scene cloud, and the SfM points
+    too with ``cfg.use_sparse_points``."""
+    if not cfg.use_sparse_points or not len(stages.sfm.points_xyz):
+        return stages.dense.cloud
+    return PointCloud(np.vstack([stages.dense.cloud.xyz, stages.sfm.points_xyz]))
+
+
 def food_mesh(masked: PointCloud, scene: PointCloud, up: np.ndarray | None,
               model: SymmCompletion | None, cfg: EstimateConfig,
               silhouettes: list[SilhouetteView] | None = None) -> FoodMesh:
@@ -304,7 +312,8 @@ def estimate_from_stages(capture: Capture, stages: StageResults, model: SymmComp
     it is not to be trusted (:mod:`volec.trust`). The pure core of :func:`run_estimate` and of
     the experiments."""
     up = capture_up(capture)
-    food = food_mesh(stages.masked.cloud, stages.dense.cloud, up, model, cfg, silhouettes)
+    food = food_mesh(stages.masked.cloud, support_scene(stages, cfg.support), up, model, cfg,
+                     silhouettes)
     view_up = (np.asarray(food.support.normal) if food.support is not None
                else up if up is not None else np.array([0.0, 0.0, 1.0]))
     sfm = stages.sfm
