@@ -2,7 +2,15 @@
 
 from __future__ import annotations
 
-from volec.experiments import cached_row, map_items
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from volec.capture import Capture, Frame, Intrinsics
+from volec.errors import ConfigError
+from volec.experiments import cached_row, frame_subset, map_items, scenarios
+from volec.geometry import look_at_opencv
 
 
 def test_map_items_in_parallel_returns_the_rows_in_job_order():
@@ -92,3 +100,40 @@ def test_mask_scores_against_analytic_discs():
     assert boundary_f_score(disc(56), disc(50)) < 0.6
     empty = np.zeros((100, 100), bool)
     assert mask_iou(empty, empty) == 1.0 and boundary_f_score(empty, disc(50)) == 0.0
+
+
+def _orbit_capture(n: int, start_deg: float) -> Capture:
+    """``n`` cameras evenly around a full orbit (y up, as volec synth writes), from
+    ``start_deg`` of azimuth, all looking at a point off the origin."""
+    target = np.array([0.3, 0.1, -0.2])
+    intr = Intrinsics(width=64, height=48, fx=50.0, fy=50.0, cx=32.0, cy=24.0)
+    frames = []
+    for k in range(n):
+        a = np.radians(start_deg + 360.0 * k / n)
+        eye = target + np.array([0.3 * np.cos(a), 0.2, 0.3 * np.sin(a)])
+        T = look_at_opencv(eye, target, np.array([0.0, 1.0, 0.0]))
+        frames.append(Frame(f"f{k:03d}.jpg", Path(f"f{k:03d}.jpg"), intr, T))
+    return Capture(Path("."), tuple(frames), {"world_up": [0.0, 1.0, 0.0]})
+
+
+@pytest.mark.parametrize("start_deg", [0.0, 137.0, 300.0])
+def test_a_half_orbit_keeps_the_cameras_within_180_degrees_from_the_first(start_deg):
+    capture = _orbit_capture(101, start_deg)  # frame 50 at 178.2 degrees, 51 at 181.8
+    keep = frame_subset(capture, "half_orbit")
+    np.testing.assert_array_equal(keep, np.arange(51))  # the first 180 degrees of 360
+    backwards = Capture(capture.root, capture.frames[::-1], capture.metadata)
+    np.testing.assert_array_equal(frame_subset(backwards, "half_orbit"), np.arange(51))
+    assert len(frame_subset(capture, "evenly:30")) == 30
+    np.testing.assert_array_equal(frame_subset(capture, "evenly:5"), [0, 25, 50, 75, 100])
+    assert len(frame_subset(capture, "all")) == 101
+    with pytest.raises(ConfigError):
+        frame_subset(capture, "third_orbit")
+
+
+def test_subset_scenarios_share_the_rendering_and_keep_their_own_work(tmp_path):
+    found = scenarios(False)
+    full, half = found["full_orbit"], found["half_orbit"]
+    assert half.folder(tmp_path, "apple") == full.folder(tmp_path, "apple")
+    assert half.synth == full.synth and found["sparse"].frames == "evenly:30"
+    out = full.folder(tmp_path, "apple")
+    assert full.work(out) == out / "work" and half.work(out) == out / "work-half_orbit"

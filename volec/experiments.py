@@ -19,14 +19,14 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
-from volec.capture import read_transforms_json
+from volec.capture import Capture, read_transforms_json
 from volec.dense import DenseConfig, run_dense, save_dense
 from volec.errors import ConfigError, UnknownNameError
 from volec.io import write_bytes_atomic, write_json_atomic
@@ -60,21 +60,90 @@ class Scenario:
     """Short identifier used in folder names and tables."""
     synth: SynthConfig
     """How the capture is generated."""
+    frames: str = "all"
+    """Which of the rendered frames the pipeline gets (:func:`frame_subset`): ``all``,
+    ``half_orbit`` or ``evenly:N``."""
+    rendered_as: str = ""
+    """The scenario whose rendering (``ITEM-RENDERED_AS/``, the same ``synth``) this one takes
+    its frames from, running the whole pipeline on them alone in ``work-NAME/``; empty: its
+    own rendering and ``work/``. Subsets of one rendering cost no rendering and compare
+    directly."""
+
+    def folder(self, root: Path, item: str) -> Path:
+        """The capture's folder (capture and ground truth)."""
+        return Path(root) / f"{item}-{self.rendered_as or self.name}"
+
+    def work(self, out: Path) -> Path:
+        """The work folder of this scenario's stages in the capture folder ``out``."""
+        return Path(out) / (f"work-{self.name}" if self.rendered_as else "work")
+
+
+def _fixation_point(T_world_from_cam: np.ndarray) -> np.ndarray:
+    """The point nearest to every camera's optical axis (least squares): what they film."""
+    A, b = np.zeros((3, 3)), np.zeros(3)
+    for T in T_world_from_cam:
+        d = T[:3, 2] / np.linalg.norm(T[:3, 2])
+        P = np.eye(3) - np.outer(d, d)
+        A += P
+        b += P @ T[:3, 3]
+    return np.linalg.solve(A, b)
+
+
+def frame_subset(capture: Capture, rule: str) -> np.ndarray:
+    """Indices of the frames of ``capture`` a scenario keeps: ``all``; ``half_orbit``: those
+    whose camera lies within the 180 degrees of azimuth (about the capture's up, around the
+    point the cameras fixate) that the orbit covers first, from the first frame; ``evenly:N``: N evenly spaced.
+    Only the capture's own (AR) poses decide, never the ground truth."""
+    n = len(capture)
+    if rule == "all":
+        return np.arange(n)
+    if rule.startswith("evenly:"):
+        keep = int(rule.split(":")[1])
+        return np.unique(np.round(np.linspace(0, n - 1, min(keep, n))).astype(int))
+    if rule == "half_orbit":
+        from volec.geometry import horizontal_axes
+
+        T = np.stack([f.T_world_from_cam for f in capture.frames])
+        up = np.asarray(capture.metadata.get("world_up", (0.0, 0.0, 1.0)), float)
+        e1, e2 = horizontal_axes(up)
+        rel = T[:, :3, 3] - _fixation_point(T)
+        azimuth = np.degrees(np.arctan2(rel @ e2, rel @ e1))
+        # measured the way the phone went round, so the arc is the first half it filmed
+        turn = np.sign(np.sum(np.diff(np.unwrap(np.radians(azimuth))))) or 1.0
+        return np.flatnonzero((turn * (azimuth - azimuth[0])) % 360.0 < 180.0)
+    raise ConfigError(f"unknown frame rule {rule!r}: all, half_orbit or evenly:N")
+
+
+def scenario_capture(out: Path, scenario: Scenario, exact: bool = False) -> Capture:
+    """The capture a scenario's pipeline gets from the capture folder ``out`` (with
+    ``exact``, the ground truth's exact poses of the same frames, for scoring only)."""
+    reported = read_transforms_json(out / "capture")
+    keep = frame_subset(reported, scenario.frames)
+    chosen = reported
+    if exact:
+        chosen = read_transforms_json(out / "ground_truth" / "transforms_exact.json",
+                                      check_image_sizes=False)
+    if len(keep) == len(chosen):
+        return chosen
+    return replace(chosen, frames=tuple(chosen.frames[i] for i in keep))
 
 
 def scenarios(quick: bool) -> dict[str, Scenario]:
-    """The capture conditions: full orbit at the default 5 mm drift, a half orbit, 1 cm drift
-    (all with a phone's look), the full orbit with the first benchmark's sharp look, and the
-    full orbit in a setup that makes segmentation hard (one per item, see
-    :data:`volec.synth.scene.HARD_SETUPS`).
+    """The capture conditions: full orbit at the default 5 mm drift, its frames within a
+    half orbit, 30 of its frames evenly spread, 1 cm drift (all with a phone's look), the
+    full orbit with the first benchmark's sharp look, and the full orbit in a setup that makes
+    segmentation hard (one per item, see :data:`volec.synth.scene.HARD_SETUPS`).
     ``quick`` gives small captures for CI (20 frames over 120 degrees)."""
     if quick:
         small = SYNTH_PRESETS["default"].with_(n_frames=20, arc_deg=120.0)
         return {"quick": Scenario("quick", small),
                 "quick_hard": Scenario("quick_hard", small.with_(setup="hard"))}
+    full = SYNTH_PRESETS["default"]
     return {
-        "full_orbit": Scenario("full_orbit", SYNTH_PRESETS["default"]),
-        "half_orbit": Scenario("half_orbit", SYNTH_PRESETS["half_orbit"]),
+        "full_orbit": Scenario("full_orbit", full),
+        "half_orbit": Scenario("half_orbit", full, frames="half_orbit",
+                               rendered_as="full_orbit"),
+        "sparse": Scenario("sparse", full, frames="evenly:30", rendered_as="full_orbit"),
         "drift_1cm": Scenario("drift_1cm", SYNTH_PRESETS["drift_1cm"]),
         "full_orbit_sharp": Scenario("full_orbit_sharp", SYNTH_PRESETS["sharp"]),
         "hard": Scenario("hard", SYNTH_PRESETS["default"].with_(setup="hard")),
@@ -84,7 +153,7 @@ def scenarios(quick: bool) -> dict[str, Scenario]:
 def ensure_capture(root: Path, item: str, scenario: Scenario) -> Path:
     """The synthetic capture folder for (item, scenario), generated if missing or made with
     another config or generator code (then its work folder goes too)."""
-    out = Path(root) / f"{item}-{scenario.name}"
+    out = scenario.folder(root, item)
     if not is_current(out, scenario.synth):
         write_synthetic_capture(item, out, scenario.synth, overwrite=True, progress=False)
     return out
@@ -126,18 +195,17 @@ def sfm_row(root: Path, item: str, scenario: Scenario, cfg: SfmConfig) -> dict[s
     out = ensure_capture(root, item, scenario)
 
     def run() -> dict[str, Any]:
-        reported = read_transforms_json(out / "capture")
-        exact = read_transforms_json(out / "ground_truth" / "transforms_exact.json",
-                                     check_image_sizes=False)
+        reported = scenario_capture(out, scenario)
+        exact = scenario_capture(out, scenario, exact=True)
         # the stage is reused when another experiment already ran it from the same inputs;
         # its steps' wall times are those recorded when it ran
-        result, _ = run_sfm_stage(reported, out / "work", cfg, stale="recompute")
+        result, _ = run_sfm_stage(reported, scenario.work(out), cfg, stale="recompute")
         return {"item": item, "scenario": scenario.name, "frames": len(reported),
                 "wall_s": float(sum(result.summary["timings_s"].values())),
                 **evaluate_sfm(result, exact, reported),
                 **{f"{k}_s": v for k, v in result.summary["timings_s"].items()}}
 
-    return cached_row(out / "work" / SFM_CACHE, sfm_key(cfg), run)
+    return cached_row(scenario.work(out) / SFM_CACHE, sfm_key(cfg), run)
 
 
 def sfm_key(cfg: SfmConfig) -> dict[str, Any]:
@@ -156,7 +224,7 @@ def sfm_experiment(
     """
     cfg = cfg or SfmConfig()
     runs = [(item, scenario) for scenario in scenario_list for item in items]
-    rows = [_cached(root / f"{item}-{sc.name}" / "work" / SFM_CACHE, sfm_key(cfg))
+    rows = [_cached(sc.work(sc.folder(root, item)) / SFM_CACHE, sfm_key(cfg))
             for item, sc in runs]
     todo = [n for n, row in enumerate(rows) if row is None]
     computed = map_items(sfm_row, [(root, *runs[n], cfg) for n in todo],
@@ -335,7 +403,6 @@ def completion_experiment(checkpoint: Path, root: Path, quick: bool) -> pd.DataF
     missing, :func:`pipeline_completion`), per test view; with the network's and the mirror's
     time. Cached per view in ``root/quick`` or ``root/full``, keyed by the checkpoint's digest,
     the settings and the code."""
-    from dataclasses import replace
 
     from volec.completion.complete import complete_cloud
     from volec.completion.mirror import mirror_complete
@@ -484,7 +551,6 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
     The estimate is :func:`volec.estimate.estimate_from_stages`, exactly what ``volec estimate``
     runs, once without and once with completion on the same stage results; the ground truth is
     read only to score it."""
-    from dataclasses import replace
 
     from volec.estimate import estimate_from_stages, food_silhouettes, load_completion_model
     from volec.meshing import with_normals
@@ -493,11 +559,11 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
     from volec.synth import load_truth
 
     out = ensure_capture(root, item, scenario)
-    work = out / "work"
+    work = scenario.work(out)
 
     def run() -> dict[str, Any]:
         model = load_completion_model(cfg)
-        capture = read_transforms_json(out / "capture")
+        capture = scenario_capture(out, scenario)
         scale = require_metric(capture, cfg.scale)
         stages = run_stages(capture, work, cfg.sfm, cfg.dense, cfg.masking, stale="recompute",
                             progress=False)
@@ -564,7 +630,7 @@ def volume_experiment(root: Path, items: list[str], scenario: Scenario,
     cfg = cfg or EstimateConfig()
     key = row_key(config_record(cfg), "volec.estimate", "volec.metrics",
                   checkpoint=file_digest(checkpoint_path(cfg)))
-    rows = {item: _cached(root / f"{item}-{scenario.name}" / "work" / VOLUME_CACHE, key)
+    rows = {item: _cached(scenario.work(scenario.folder(root, item)) / VOLUME_CACHE, key)
             for item in items}
     todo = [item for item in items if rows[item] is None]
     computed = map_items(volume_row, [(root, item, scenario, cfg, key, workers)
@@ -775,7 +841,6 @@ ATTRIBUTION_VARIANTS = {
 def _with_exact_poses(stages: Any, exact: Any) -> Any:
     """The stage results with the SfM poses replaced by the exact ones, every frame
     registered (for the attribution experiment only)."""
-    from dataclasses import replace
 
     sfm = replace(stages.sfm, T_world_from_cam=np.stack([f.T_world_from_cam for f in exact.frames]),
                   registered=np.ones(len(exact), bool))
@@ -806,7 +871,6 @@ def _exact_depth_cloud(capture: Any, masks: Any, sfm: Any, item: str, scenario: 
 def attribution_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
                     key: dict[str, Any]) -> dict[str, Any]:
     """One item of :func:`attribution_experiment`, computed and cached under ``key``."""
-    from dataclasses import replace
 
     from volec.estimate import estimate_from_stages, food_silhouettes, load_completion_model
 
@@ -1014,7 +1078,7 @@ def qualitative_panels(root: Path, item: str, scenario: Scenario) -> dict[str, A
     from volec.viz import Highlighted
 
     out = ensure_capture(root, item, scenario)
-    work = out / "work"
+    work = scenario.work(out)
     masked = load_masking(work).cloud
     completed = read_ply(work / "food_completed.ply")  # the masked points, then the network's
     return {"masked cloud": masked,
