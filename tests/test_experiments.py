@@ -5,11 +5,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from volec.capture import Capture, Frame, Intrinsics
 from volec.errors import ConfigError
-from volec.experiments import cached_row, frame_subset, map_items, scenarios
+from volec.experiments import cached_row, frame_subset, map_items, scenarios, volume_table
 from volec.geometry import look_at_opencv
 
 
@@ -137,3 +138,19 @@ def test_subset_scenarios_share_the_rendering_and_keep_their_own_work(tmp_path):
     assert half.synth == full.synth and found["sparse"].frames == "evenly:30"
     out = full.folder(tmp_path, "apple")
     assert full.work(out) == out / "work" and half.work(out) == out / "work-half_orbit"
+
+
+def test_table_i_shows_a_failed_item_and_averages_over_the_others():
+    raw = pd.DataFrame([
+        {"label": "Apple", "gt_ml": 100.0, "no_completion_ml": 102.0, "completion_ml": 99.0,
+         "completion_trusted": True, "error": None},
+        {"label": "Banana", "gt_ml": 150.0, "error": "SfmError: the AR poses disagree"},
+        {"label": "Pear", "gt_ml": 200.0, "no_completion_ml": 196.0, "completion_ml": 203.0,
+         "completion_trusted": False, "error": None},
+    ])
+    table = volume_table(raw).set_index("item")
+    assert list(table["failed"]) == [0.0, 1.0, 0.0, pytest.approx(1 / 3)]
+    assert np.isnan(table.loc["Banana", "with_ml"])
+    assert table.loc["mean", "without_ape_pct"] == pytest.approx((2.0 + 2.0) / 2)
+    assert table.loc["mean", "with_ape_pct"] == pytest.approx((1.0 + 1.5) / 2)
+    assert "failed" not in volume_table(raw.drop(index=1)).columns

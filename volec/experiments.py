@@ -28,7 +28,7 @@ import pandas as pd
 
 from volec.capture import Capture, read_transforms_json
 from volec.dense import DenseConfig, run_dense, save_dense
-from volec.errors import ConfigError, UnknownNameError
+from volec.errors import ConfigError, UnknownNameError, VolecError
 from volec.io import write_bytes_atomic, write_json_atomic
 from volec.masking import MaskingConfig, mask_cloud, save_masking
 from volec.metrics import (
@@ -92,8 +92,9 @@ def _fixation_point(T_world_from_cam: np.ndarray) -> np.ndarray:
 def frame_subset(capture: Capture, rule: str) -> np.ndarray:
     """Indices of the frames of ``capture`` a scenario keeps: ``all``; ``half_orbit``: those
     whose camera lies within the 180 degrees of azimuth (about the capture's up, around the
-    point the cameras fixate) that the orbit covers first, from the first frame; ``evenly:N``: N evenly spaced.
-    Only the capture's own (AR) poses decide, never the ground truth."""
+    point the cameras fixate) that the orbit covers first, from the first frame;
+    ``evenly:N``: N evenly spaced. Only the capture's own (AR) poses decide, never the ground
+    truth."""
     n = len(capture)
     if rule == "all":
         return np.arange(n)
@@ -565,8 +566,14 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
         model = load_completion_model(cfg)
         capture = scenario_capture(out, scenario)
         scale = require_metric(capture, cfg.scale)
-        stages = run_stages(capture, work, cfg.sfm, cfg.dense, cfg.masking, stale="recompute",
-                            progress=False)
+        try:
+            stages = run_stages(capture, work, cfg.sfm, cfg.dense, cfg.masking,
+                                stale="recompute", progress=False)
+        except VolecError as e:  # recorded as the item's result, as `volec batch` does
+            return {"item": item, "label": load_truth(out)["label"], "scenario": scenario.name,
+                    "frames": len(capture),
+                    "gt_ml": float(load_ground_truth_mesh(out).volume * 1e6),
+                    "error": f"{type(e).__name__}: {e}"}
         sfm, dense, masked = stages.sfm, stages.dense, stages.masked
         start = time.perf_counter()
         silhouettes = food_silhouettes(capture, stages, cfg)
@@ -973,14 +980,19 @@ def volume_table(raw: pd.DataFrame, masks: pd.DataFrame | None = None) -> pd.Dat
     (100 - APE), and whether volec trusted the estimate with completion (the default); with
     ``masks`` (:func:`segmentation_experiment` on the same items), the default estimate with
     automatic masks and with noisy ones; then the means (MAPE, mean accuracy, and the share
-    of estimates trusted)."""
+    of estimates trusted). An item whose pipeline failed (an ``error`` in its row) has no
+    volumes and ``failed`` 1; the means are over the others, and the mean of ``failed`` is
+    the share that failed."""
     table = pd.DataFrame({"item": raw["label"], "gt_ml": raw["gt_ml"]})
+    failed = raw["error"].notna() if "error" in raw else pd.Series(False, index=raw.index)
     for tag, name in (("no_completion", "without"), ("completion", "with")):
         ape = 100 * (raw[f"{tag}_ml"] - raw["gt_ml"]).abs() / raw["gt_ml"]
         table[f"{name}_ml"] = raw[f"{tag}_ml"]
         table[f"{name}_ape_pct"] = ape
         table[f"{name}_accuracy_pct"] = 100 - ape
     table["with_trusted"] = raw["completion_trusted"].astype(float)
+    if failed.any():
+        table["failed"] = failed.astype(float)
     if masks is not None:
         by_item = masks.set_index("item").reindex(raw["item"])
         for tag in ("auto", "noisy"):
