@@ -16,9 +16,8 @@ import pandas as pd
 import pytest
 import trimesh
 
-from volec.pointcloud import PointCloud
+from volec.pointcloud import PREDICTED_COLOUR, PointCloud
 from volec.report import (
-    PREDICTED_COLOUR,
     ReportConfig,
     ReportScene,
     report_html,

@@ -20,6 +20,8 @@ from volec.errors import DataError, VolecError
 PREDICTED_RGB = (214, 36, 110)
 """The colour of points a shape prior added (the completion network's): a magenta that no
 food has, in ``food_completed.ply``, the pictures and the report."""
+PREDICTED_COLOUR = "#{:02x}{:02x}{:02x}".format(*PREDICTED_RGB)
+""":data:`PREDICTED_RGB` as a hex colour, for matplotlib, pyvista and the report's page."""
 
 
 @dataclass(frozen=True, eq=False)

@@ -29,8 +29,7 @@ import pandas as pd
 import trimesh
 
 from volec.io import write_text_atomic
-from volec.pointcloud import PointCloud
-from volec.viz import PREDICTED_COLOUR
+from volec.pointcloud import PREDICTED_COLOUR, PointCloud
 
 CONTENT_SECURITY_POLICY = ("default-src 'none'; script-src 'unsafe-inline'; "
                            "style-src 'unsafe-inline'; img-src data:")

@@ -21,10 +21,7 @@ import trimesh
 from matplotlib.figure import Figure
 
 from volec.io import write_bytes_atomic
-from volec.pointcloud import PREDICTED_RGB, PointCloud
-
-PREDICTED_COLOUR = "#{:02x}{:02x}{:02x}".format(*PREDICTED_RGB)
-"""The completion network's points in every picture, the report and ``food_completed.ply``."""
+from volec.pointcloud import PREDICTED_COLOUR, PointCloud
 
 
 def mask_outline_strip(images: Sequence[np.ndarray], masks: Sequence[np.ndarray],
