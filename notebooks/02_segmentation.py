@@ -28,8 +28,9 @@
 # of the food, the food across the rim, strong shadows, a cup or a fork beside it, dim or bright
 # light). Then the default estimate's volume with the automatic masks, and with the noisy masks a
 # real segmenter might give (boundaries 1-3 px off, the shadow leaking in on 15 % of the frames,
-# a chunk missed or a false blob on 6 %, two empty): notebook 06 puts them beside the exact-mask
-# volumes in Table I.
+# a chunk missed or a false blob on 6 %, two empty), estimated with the `tolerant_masks` preset
+# that volec documents for imperfect masks: notebook 06 puts them beside the exact-mask volumes
+# in Table I.
 
 # %% tags=["parameters"]
 # Parameters (papermill overrides these)

@@ -53,8 +53,8 @@ raw = volume_experiment(root, items, scenario, progress=False)
 # ## Table I: volume per item
 #
 # APE: absolute percentage error; accuracy = 100 - APE. With exact masks, without and with
-# completion; then the default (with completion) with volec's automatic masks and with noisy
-# masks (notebook 02). The last row is the mean (MAPE).
+# completion; then the default (with completion) with volec's automatic masks, and the
+# `tolerant_masks` preset with noisy masks (notebook 02). The last row is the mean (MAPE).
 
 # %%
 masks = segmentation_experiment(root, items, scenario, progress=False)

@@ -172,6 +172,22 @@ def test_silhouette_field_is_the_metric_distance_outside_the_mask():
     assert np.isneginf(silhouette_field(points, [view], 1.0, 2)).all()
 
 
+def test_a_share_of_the_views_must_agree_before_a_point_is_carved():
+    # Ten views of one point, the same camera: three masks miss it (a chunk missed, as a
+    # segmenter does), seven hold it. Two views carve it; 40 % of the ten do not.
+    intr = Intrinsics(width=400, height=300, fx=500.0, fy=500.0, cx=200.0, cy=150.0)
+    v, u = np.mgrid[0:300, 0:400]
+    disc = np.hypot(u - 200.0, v - 150.0) <= 50.0
+    views = [silhouette_view(~disc if k < 3 else disc, intr, np.eye(4)) for k in range(10)]
+    point = np.array([[0.0, 0.0, 0.5]])
+    assert silhouette_field(point, views, 1.0, 2)[0] > 0  # carved by the three bad masks
+    assert silhouette_field(point, views, 1.0, 2, min_share=0.4)[0] < 0  # four needed: kept
+    assert silhouette_field(point, views, 1.0, 2, min_share=0.3)[0] > 0  # three suffice
+    # the share counts the views that see the point: one behind the camera does not count
+    behind = silhouette_view(~disc, intr, np.diag([-1.0, 1.0, -1.0, 1.0]))  # looks along -z
+    assert silhouette_field(point, [*views, behind], 1.0, 2, min_share=0.3)[0] > 0
+
+
 def test_signed_distance_is_exact_near_the_surface_and_signed_everywhere():
     import trimesh
 

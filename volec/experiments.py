@@ -719,7 +719,7 @@ def _volume_with_masks(out: Path, capture: Any, masks: Any, folder: str, cfg: Es
 def segmentation_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
                      volumes: bool, key: dict[str, Any]) -> dict[str, Any]:
     """One item of :func:`segmentation_experiment`, computed and cached under ``key``."""
-    from volec.estimate import load_completion_model
+    from volec.estimate import PRESETS, load_completion_model
     from volec.pipeline import run_segment_stage
     from volec.synth import load_truth
 
@@ -751,7 +751,14 @@ def segmentation_row(root: Path, item: str, scenario: Scenario, cfg: EstimateCon
         if volumes:
             model = load_completion_model(cfg)
             row["auto_ml"] = _volume_with_masks(out, capture, masks, "work-auto", cfg, model)
-            row["noisy_ml"] = _volume_with_masks(out, capture, noisy, "work-noisy", cfg, model)
+            # imperfect masks get the settings volec documents for them (the tolerant_masks
+            # preset's masking and carving), the rest of the experiment's config unchanged
+            tolerant = PRESETS["tolerant_masks"]
+            noisy_cfg = replace(cfg, masking=tolerant.masking,
+                                meshing=replace(cfg.meshing, silhouette_min_share=(
+                                    tolerant.meshing.silhouette_min_share)))
+            row["noisy_ml"] = _volume_with_masks(out, capture, noisy, "work-noisy", noisy_cfg,
+                                                 model)
         return row
 
     return cached_row(out / "work" / SEGMENT_CACHE, key, run)
@@ -768,8 +775,9 @@ def segmentation_experiment(root: Path, items: list[str], scenario: Scenario,
                             workers: int = 1, progress: bool = True) -> pd.DataFrame:
     """Automatic masks per item against the exact ones (IoU and boundary F-score per frame:
     median, 10th percentile, worst), their time, the worst frames; with ``volumes``, the
-    default estimate's volume with the automatic masks and with the noisy masks a real
-    segmenter might give (:mod:`volec.synth.masknoise`). Cached per item in
+    default estimate's volume with the automatic masks, and with the noisy masks a real
+    segmenter might give (:mod:`volec.synth.masknoise`) under the masking and carving of the
+    ``tolerant_masks`` preset, which volec documents for imperfect masks. Cached per item in
     ``segment_eval.json``, keyed like :func:`volume_experiment`."""
     from volec.estimate import EstimateConfig, checkpoint_path
 

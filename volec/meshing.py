@@ -133,6 +133,9 @@ class MeshingConfig:
     silhouette_min_views: int = 2
     """A grid point is carved when this many views see it outside their mask (one bad mask
     or pose cannot carve the food)."""
+    silhouette_min_share: float = 0.0
+    """... and at least this share of the views whose image it falls in (0: the count alone):
+    with masks that miss a chunk here and there, a few views cannot carve the food."""
     smoothing_iterations: int = 5
     """Taubin smoothing steps on the final mesh (the paper smooths 5 times)."""
     min_points: int = 500
@@ -189,13 +192,14 @@ def silhouette_views(capture: Capture, masks: MaskSet, T_world_from_cam: np.ndar
 
 
 def silhouette_field(points: np.ndarray, views: list[SilhouetteView], margin_px: float,
-                     min_views: int) -> np.ndarray:
+                     min_views: int, min_share: float = 0.0) -> np.ndarray:
     """Per point (N, 3), metres: how far outside the visual hull it is (negative inside).
 
     Each view gives the point's distance outside its (margin-widened) mask, turned from pixels
     into metres at the point's depth; the point's value is the ``min_views``-th largest of
     these over the views whose image it falls in, so that many views must agree before a point
-    is carved. Points that fewer views see are never carved (-inf)."""
+    is carved; with ``min_share``, at least that share of those views too. Points that fewer
+    views see are never carved (-inf)."""
     from scipy import ndimage
 
     points = np.asarray(points, float)
@@ -210,7 +214,16 @@ def silhouette_field(points: np.ndarray, views: list[SilhouetteView], margin_px:
         outside_px = ndimage.map_coordinates(view.signed_distance_px, [uv[ok, 1], uv[ok, 0]],
                                              order=1)
         per_view[j, ok] = (outside_px - margin_px) * cam[ok, 2] / view.intrinsics.fx
-    return -np.partition(-per_view, min_views - 1, axis=0)[min_views - 1]
+    if min_share <= 0:
+        return -np.partition(-per_view, min_views - 1, axis=0)[min_views - 1]
+    seen = np.isfinite(per_view).sum(axis=0)
+    needed = np.clip(np.maximum(min_views, np.ceil(min_share * seen)), 1,
+                     len(per_view)).astype(int)
+    out = np.empty(len(points), np.float32)
+    for k in np.unique(needed):  # a few values: one partition each
+        these = np.flatnonzero(needed == k)
+        out[these] = -np.partition(-per_view[:, these], k - 1, axis=0)[k - 1]
+    return out
 
 
 @dataclass(frozen=True)
@@ -378,7 +391,8 @@ def _carve(field_m: np.ndarray, lower: np.ndarray, shape: tuple[int, int, int],
     axes = _grid_axes(lower, shape, cfg.grid_voxel_m)
     index = np.unravel_index(near, shape)
     points = np.stack([axes[i][index[i]] for i in range(3)], axis=1)
-    hull = silhouette_field(points, views, cfg.silhouette_margin_px, cfg.silhouette_min_views)
+    hull = silhouette_field(points, views, cfg.silhouette_margin_px, cfg.silhouette_min_views,
+                            cfg.silhouette_min_share)
     inside_before = int((flat < 0).sum())
     flat[near] = np.maximum(flat[near], hull)
     carved = 1.0 - (flat < 0).sum() / max(inside_before, 1)
