@@ -90,7 +90,7 @@ def test_the_report_holds_the_geometry_and_names_no_outside_resource():
     assert layers["observed"]["count"] == len(scene.observed)
     # what the record says reaches the page, escaped
     assert "33.5 mL" in page and "narrow_orbit" in page
-    assert "<b>30.2</b> and <b>41.8</b> mL" in page and "31 %" in page
+    assert "Between 30.2 and 41.8 mL" in page and "31 %" in page
     assert "&lt;b&gt;" in page and "/data/apple&lt;/script&gt;" in page
 
 

@@ -73,7 +73,7 @@ from volec.pipeline import (
 from volec.pointcloud import PointCloud, write_ply
 from volec.progress import step
 from volec.provenance import capture_identity, file_digest, json_data, stage_provenance
-from volec.report import ReportScene, write_report_html
+from volec.report import ReportScene, bounds_sentence, write_report_html
 from volec.scale import ScaleCheck, ScaleConfig, require_metric
 from volec.segment import MaskSet, SegmentConfig, given_masks
 from volec.sfm import SfmConfig
@@ -386,15 +386,6 @@ def report_scene(est: Estimate, stages: StageResults) -> ReportScene:
     observed = len(stages.masked.cloud)
     return ReportScene(est.food.mesh.mesh, stages.masked.cloud, est.food.cloud.xyz[observed:],
                        est.view_up)
-
-
-def bounds_sentence(result: dict[str, Any]) -> str:
-    """What the volume bounds of a ``result.json`` record say, in one sentence."""
-    low, high = result["volume_bounds_ml"]
-    return (f"Bounds from what the cameras saw: {low:.1f} - {high:.1f} mL"
-            f"{' or more' if result['high_open'] else ''} (the estimate with the space no "
-            "camera constrained taken as empty, and as food); "
-            f"{100 * result['unknown_share']:.0f} % of the estimate lies in that space.")
 
 
 def report_markdown(result: dict[str, Any], pictures: dict[str, Path], out_dir: Path) -> str:

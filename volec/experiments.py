@@ -78,17 +78,6 @@ class Scenario:
         return Path(out) / (f"work-{self.name}" if self.rendered_as else "work")
 
 
-def _fixation_point(T_world_from_cam: np.ndarray) -> np.ndarray:
-    """The point nearest to every camera's optical axis (least squares): what they film."""
-    A, b = np.zeros((3, 3)), np.zeros(3)
-    for T in T_world_from_cam:
-        d = T[:3, 2] / np.linalg.norm(T[:3, 2])
-        P = np.eye(3) - np.outer(d, d)
-        A += P
-        b += P @ T[:3, 3]
-    return np.linalg.solve(A, b)
-
-
 def frame_subset(capture: Capture, rule: str) -> np.ndarray:
     """Indices of the frames of ``capture`` a scenario keeps: ``all``; ``half_orbit``: those
     whose camera lies within the 180 degrees of azimuth (about the capture's up, around the
@@ -103,11 +92,11 @@ def frame_subset(capture: Capture, rule: str) -> np.ndarray:
         return np.unique(np.round(np.linspace(0, n - 1, min(keep, n))).astype(int))
     if rule == "half_orbit":
         from volec.geometry import horizontal_axes
+        from volec.scale import fixation_point
 
-        T = np.stack([f.T_world_from_cam for f in capture.frames])
         up = np.asarray(capture.metadata.get("world_up", (0.0, 0.0, 1.0)), float)
         e1, e2 = horizontal_axes(up)
-        rel = T[:, :3, 3] - _fixation_point(T)
+        rel = capture.camera_centres - fixation_point(capture)
         azimuth = np.degrees(np.arctan2(rel @ e2, rel @ e1))
         # measured the way the phone went round, so the arc is the first half it filmed
         turn = np.sign(np.sum(np.diff(np.unwrap(np.radians(azimuth))))) or 1.0

@@ -137,15 +137,21 @@ def _trust_html(record: dict[str, Any]) -> str:
     return f'<div class="trust bad"><p>Not trusted, because:</p><ul>{items}</ul></div>'
 
 
+def bounds_sentence(record: dict[str, Any]) -> str:
+    """What the volume bounds of a ``result.json`` record say, in one sentence (both reports
+    use it)."""
+    low, high = record["volume_bounds_ml"]
+    more = " or more" if record.get("high_open") else ""
+    return (f"Between {low:.1f} and {high:.1f} mL{more} from what the cameras saw: the estimate "
+            "with the space no camera constrained taken as empty, and as food. "
+            f"{100 * record['unknown_share']:.0f} % of the estimate lies in that space, where "
+            "only the shape prior decides.")
+
+
 def _bounds_html(record: dict[str, Any]) -> str:
     if "volume_bounds_ml" not in record:
         return ""
-    low, high = record["volume_bounds_ml"]
-    more = " or more" if record.get("high_open") else ""
-    return (f'<p class="bounds">Between <b>{low:.1f}</b> and <b>{high:.1f}</b> mL{more} from '
-            "what the cameras saw: the estimate with the space no camera constrained taken as "
-            f"empty, and as food. {100 * record['unknown_share']:.0f} % of the estimate lies in "
-            "that space, where only the shape prior decides.</p>")
+    return f'<p class="bounds">{html.escape(bounds_sentence(record))}</p>'
 
 
 def _facts_html(record: dict[str, Any]) -> str:
