@@ -149,7 +149,10 @@ def test_textureless_frames_are_an_error(tmp_path):
 def test_colmap_sift_backend_also_recovers_the_poses(small_capture, tmp_path):
     reported = read_transforms_json(small_capture / "capture")
     exact = read_transforms_json(small_capture / "ground_truth" / "transforms_exact.json")
-    result = run_sfm(reported, tmp_path, SfmConfig(features="colmap_sift"))
+    # also the incremental mapping from scratch, which ignores the AR poses
+    result = run_sfm(reported, tmp_path, SfmConfig(features="colmap_sift",
+                                                   mapping="incremental"))
+    assert result.summary["mapping"] == "incremental"
     errors = evaluate_sfm(result, exact, reported)
     assert errors["registered_fraction"] >= 0.9
     assert abs(errors["scale_err_pct"]) < 1.0
@@ -159,8 +162,11 @@ def test_sfm_recovers_metric_poses(small_capture, small_result):
     result, reported = small_result
     exact = read_transforms_json(small_capture / "ground_truth" / "transforms_exact.json")
     errors = evaluate_sfm(result, exact, reported)
+    assert result.summary["mapping"] == "known_poses"
     assert errors["registered_fraction"] >= 0.9
     assert abs(errors["scale_err_pct"]) < 1.0
+    # bundle adjustment removed most of the AR error, not only kept the AR poses
+    assert errors["centre_err_median_m"] < 0.5 * errors["ar_centre_err_median_m"]
     assert errors["centre_err_median_m"] < 0.004
     assert errors["rot_err_median_deg"] < 0.5
     assert len(result.points_xyz) > 500
@@ -200,3 +206,36 @@ def test_ar_poses_that_disagree_with_the_images_are_an_error(small_capture, smal
     rec = pycolmap.Reconstruction(str(small_capture / "work" / "sfm" / "model"))
     with pytest.raises(SfmError, match="disagree|no similarity"):
         align_to_ar(shuffled, rec, SfmConfig())
+
+
+def test_ar_poses_far_off_are_not_triangulated_from(small_capture, tmp_path, caplog):
+    """Each frame given another frame's AR pose: known-pose triangulation keeps too few frames,
+    mapping starts from scratch (recorded), and the alignment then refuses the AR poses."""
+    reported = read_transforms_json(small_capture / "capture")
+    order = np.random.default_rng(0).permutation(len(reported))
+    shuffled = Capture(reported.root, tuple(
+        replace(f, T_world_from_cam=reported.frames[j].T_world_from_cam)
+        for f, j in zip(reported.frames, order, strict=True)))
+    with pytest.raises(SfmError, match="disagree"):
+        run_sfm(shuffled, tmp_path / "work")
+    assert "agree with their AR poses; mapping from scratch" in caplog.text
+    assert not (tmp_path / "work" / "sfm").exists()
+
+
+def test_sampson_distance_is_zero_on_the_epipolar_geometry_and_grows_off_it():
+    from volec.sfm import sampson_distance
+
+    rng = np.random.default_rng(1)
+    points = rng.uniform([-0.1, -0.1, 0.4], [0.1, 0.1, 0.6], size=(200, 3))
+    R = rotvec_to_matrix(np.radians([2.0, -10.0, 1.0]))
+    t = np.array([0.1, 0.0, 0.01])
+    x1 = points[:, :2] / points[:, 2:]
+    in_cam2 = points @ R.T + t
+    x2 = in_cam2[:, :2] / in_cam2[:, 2:]
+    tn = t / np.linalg.norm(t)
+    E = np.array([[0, -tn[2], tn[1]], [tn[2], 0, -tn[0]], [-tn[1], tn[0], 0]]) @ R
+    assert sampson_distance(E, x1, x2).max() < 1e-9
+    # moving the second view's points 0.01 across (y: the epipolar lines run along x here)
+    # puts them about 0.01 / sqrt(2) off in the Sampson sense (split over the two views)
+    off = sampson_distance(E, x1, x2 + [0.0, 0.01])
+    assert 0.004 < np.median(off) < 0.011

@@ -497,7 +497,7 @@ def map_items(function: Callable[..., dict[str, Any]], jobs: list[tuple], labels
     when above 1 (the mechanism of ``volec batch``).
 
     Most stages use one or two cores for much of their time (rendering, OpenCV SIFT,
-    incremental mapping), so on a 2-core machine two items at once finish sooner than one
+    bundle adjustment), so on a 2-core machine two items at once finish sooner than one
     after the other. ``function`` must be importable and ``jobs`` picklable; a script that
     calls this with ``workers > 1`` needs the ``if __name__ == "__main__":`` guard (notebooks
     do not). Results come back in the order of ``jobs``.

@@ -79,6 +79,25 @@ class SfmConfig:
     """At most this many partners per image for ``ar_guided`` pairing (nearest first)."""
     sequential_overlap: int = 8
     """Partners per image for ``sequential`` pairing (also always added by ``ar_guided``)."""
+    mapping: Literal["known_poses", "incremental"] = "known_poses"
+    """How the model is built from the matches. ``known_poses``: points are triangulated from
+    the AR poses, then poses and points are bundle-adjusted and the points re-triangulated
+    (``known_pose_rounds`` times); ``incremental``: COLMAP's incremental mapping from scratch,
+    which ignores the AR poses (4-6 times slower on a 100-frame orbit). A known-pose model that
+    keeps fewer than ``min_registered_fraction`` of the frames (AR poses far off) falls back to
+    incremental mapping; ``summary.json`` records which one ran."""
+    known_pose_rounds: int = 1
+    """``known_poses``: re-triangulation and bundle adjustment rounds after the first one."""
+    max_ar_epipolar_error_deg: float = 3.0
+    """``known_poses``: a frame whose verified matches lie farther than this (median Sampson
+    distance over its pairs, as an angle at the camera) from the epipolar lines its AR pose
+    predicts is not triangulated from (:func:`ar_epipolar_error_deg`). Measured with 5 mm AR
+    drift: 0.1-0.5 degrees on 100-frame and 16-frame orbits, up to 2.7 on 30-frame ones (wide
+    baselines); shuffled AR poses or OpenGL axes read as OpenCV: 2.2-8 degrees. A wrong pose
+    that passes triangulates few points and is dropped (``min_observations_per_frame``)."""
+    min_observations_per_frame: int = 40
+    """``known_poses``: a frame with fewer triangulated observations is left unregistered
+    (its AR pose disagrees with its matches, or it sees too little)."""
     ba_global_growth_ratio: float = 1.4
     """Global bundle adjustment runs when the model has grown by this factor (COLMAP: 1.1)."""
     ba_max_iterations: int = 30
@@ -463,27 +482,8 @@ def _run_sfm_in(capture: Capture, sfm_dir: Path, cfg: SfmConfig,
     timings["match_s"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    log.info("SfM 3/4: incremental mapping")
-    opts = pycolmap.IncrementalPipelineOptions(
-        ba_refine_focal_length=False, ba_refine_principal_point=False,
-        ba_refine_extra_params=False, multiple_models=False,
-        num_threads=cfg.num_threads, random_seed=cfg.seed,
-        # Global bundle adjustment after each 40 % growth of the model rather than each 10 %,
-        # and capped iterations: the largest cost on 2 cores, with no loss of accuracy on the
-        # benchmark (benchmarks/bench_sfm.py).
-        ba_global_frames_ratio=cfg.ba_global_growth_ratio,
-        ba_global_points_ratio=cfg.ba_global_growth_ratio,
-        ba_global_max_num_iterations=cfg.ba_max_iterations,
-        ba_local_max_num_iterations=cfg.ba_max_iterations,
-    )
-    maps = pycolmap.incremental_mapping(db, capture.root, sfm_dir / "colmap", opts)
+    rec, mapping = _map(capture, db, sfm_dir, cfg)
     timings["map_s"] = time.perf_counter() - t
-    if not maps:
-        raise SfmError(
-            "COLMAP could not build a model: too few matches between frames. Check that the "
-            "frames overlap (a slow orbit) and are sharp"
-        )
-    rec = max(maps.values(), key=lambda r: r.num_reg_images())
 
     t = time.perf_counter()
     log.info("SfM 4/4: aligning %d registered frames to the AR poses", rec.num_reg_images())
@@ -491,6 +491,7 @@ def _run_sfm_in(capture: Capture, sfm_dir: Path, cfg: SfmConfig,
     timings["align_s"] = time.perf_counter() - t
     result.summary["timings_s"] = {k: round(v, 3) for k, v in timings.items()}
     result.summary["pairs"] = len(pairs)
+    result.summary["mapping"] = mapping
     result.summary["keypoints_median"] = int(np.median(n_kp))
     result.summary["textureless_frames"] = textureless
     result.summary["config"] = asdict(cfg)
@@ -517,6 +518,174 @@ def _run_sfm_in(capture: Capture, sfm_dir: Path, cfg: SfmConfig,
         result.summary["residual_median_m"] * 1000,
     )
     return result
+
+
+def _map(capture: Capture, db: Path, sfm_dir: Path, cfg: SfmConfig) -> tuple[Any, str]:
+    """The model of ``capture`` from the matches in ``db``, and a line saying how it was made."""
+    if cfg.mapping == "known_poses":
+        log.info("SfM 3/4: triangulating from the AR poses, then bundle adjustment")
+        trusted = ar_epipolar_error_deg(capture, db) <= cfg.max_ar_epipolar_error_deg
+        kept = 0
+        if trusted.sum() >= cfg.min_registered_fraction * len(capture):
+            rec = known_pose_mapping(capture, db, sfm_dir / "colmap", cfg, trusted)
+            kept = rec.num_reg_images()
+            if kept >= cfg.min_registered_fraction * len(capture):
+                return rec, "known_poses"
+        log.warning("only %d of %d frames agree with their AR poses; mapping from scratch",
+                    kept, len(capture))
+        how = (f"incremental (known-pose triangulation kept {kept} of {len(capture)} frames; "
+               f"{int((~trusted).sum())} AR poses disagreed with the matches)")
+    else:
+        how = "incremental"
+    log.info("SfM 3/4: incremental mapping")
+    return _incremental_mapping(capture, db, sfm_dir, cfg), how
+
+
+def _incremental_mapping(capture: Capture, db: Path, sfm_dir: Path, cfg: SfmConfig) -> Any:
+    import pycolmap
+
+    opts = pycolmap.IncrementalPipelineOptions(
+        ba_refine_focal_length=False, ba_refine_principal_point=False,
+        ba_refine_extra_params=False, multiple_models=False,
+        num_threads=cfg.num_threads, random_seed=cfg.seed,
+        # Global bundle adjustment after each 40 % growth of the model rather than each 10 %,
+        # and capped iterations: the largest cost on 2 cores, with no loss of accuracy on the
+        # benchmark (benchmarks/bench_sfm.py).
+        ba_global_frames_ratio=cfg.ba_global_growth_ratio,
+        ba_global_points_ratio=cfg.ba_global_growth_ratio,
+        ba_global_max_num_iterations=cfg.ba_max_iterations,
+        ba_local_max_num_iterations=cfg.ba_max_iterations,
+    )
+    maps = pycolmap.incremental_mapping(db, capture.root, sfm_dir / "colmap", opts)
+    if not maps:
+        raise SfmError(
+            "COLMAP could not build a model: too few matches between frames. Check that the "
+            "frames overlap (a slow orbit) and are sharp"
+        )
+    return max(maps.values(), key=lambda r: r.num_reg_images())
+
+
+def _normalised_keypoints(capture: Capture, database: Any, image_id: int, i: int) -> np.ndarray:
+    """Frame ``i``'s keypoints as undistorted normalised image coordinates (N, 2)."""
+    import cv2
+
+    intr = capture.frames[i].intrinsics
+    xy = database.read_keypoints(image_id)[:, :2] - PIXEL_CENTRE_OFFSET
+    return cv2.undistortPoints(xy.reshape(-1, 1, 2).astype(np.float64), intr.K,
+                               np.asarray(intr.distortion, float)).reshape(-1, 2)
+
+
+def sampson_distance(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+    """First-order distance of matches ``x1 <-> x2`` (N, 2, normalised coordinates) to the
+    epipolar geometry ``E`` (``x2' E x1 = 0``), in the same units."""
+    h1 = np.column_stack([x1, np.ones(len(x1))])
+    h2 = np.column_stack([x2, np.ones(len(x2))])
+    Ex1 = h1 @ E.T
+    Etx2 = h2 @ E
+    numerator = np.einsum("ij,ij->i", h2, Ex1) ** 2
+    denominator = Ex1[:, 0] ** 2 + Ex1[:, 1] ** 2 + Etx2[:, 0] ** 2 + Etx2[:, 1] ** 2
+    return np.sqrt(numerator / np.maximum(denominator, 1e-30))
+
+
+def ar_epipolar_error_deg(capture: Capture, db: Path) -> np.ndarray:
+    """Per frame, how far its verified matches lie from the epipolar lines that the AR poses
+    predict: the median over the frame's pairs of each pair's median Sampson distance, as an
+    angle at the camera in degrees (infinite for a frame with no verified pair). The check
+    uses the images alone through the matches, so AR poses that are wrong (shuffled, another
+    convention) stand out by degrees while AR drift gives tenths of one."""
+    import pycolmap
+
+    index = {f.name: i for i, f in enumerate(capture.frames)}
+    per_frame: list[list[float]] = [[] for _ in capture.frames]
+    with pycolmap.Database.open(db) as database:
+        frame_of = {im.image_id: index[im.name] for im in database.read_all_images()}
+        points = {image_id: _normalised_keypoints(capture, database, image_id, i)
+                  for image_id, i in frame_of.items()}
+        pair_ids, geometries = database.read_two_view_geometries()
+    for pair_id, geometry in zip(pair_ids, geometries, strict=True):
+        matches = np.asarray(geometry.inlier_matches)
+        if len(matches) == 0:
+            continue
+        id1, id2 = pycolmap.pair_id_to_image_pair(pair_id)
+        i, j = frame_of[id1], frame_of[id2]
+        T_cam2_from_cam1 = invert_rigid(capture.frames[j].T_world_from_cam) \
+            @ capture.frames[i].T_world_from_cam
+        t = T_cam2_from_cam1[:3, 3] / max(np.linalg.norm(T_cam2_from_cam1[:3, 3]), 1e-12)
+        E = np.array([[0, -t[2], t[1]], [t[2], 0, -t[0]], [-t[1], t[0], 0]]) \
+            @ T_cam2_from_cam1[:3, :3]
+        distance = sampson_distance(E, points[id1][matches[:, 0]], points[id2][matches[:, 1]])
+        error = float(np.degrees(np.arctan(np.median(distance))))
+        per_frame[i].append(error)
+        per_frame[j].append(error)
+    return np.array([np.median(e) if e else np.inf for e in per_frame])
+
+
+def _ar_posed_reconstruction(capture: Capture, db: Path, trusted: np.ndarray) -> Any:
+    """A pycolmap model holding the database's cameras and images, the ``trusted`` frames
+    registered at their AR poses, no points."""
+    import pycolmap
+
+    rec = pycolmap.Reconstruction()
+    with pycolmap.Database.open(db) as database:
+        for camera in database.read_all_cameras():
+            rec.add_camera(camera)
+        for rig in database.read_all_rigs():
+            rec.add_rig(rig)
+        for frame in database.read_all_frames():
+            rec.add_frame(frame)
+        images = database.read_all_images()
+    index = {f.name: i for i, f in enumerate(capture.frames)}
+    for image in images:
+        rec.add_image(image)
+        i = index[image.name]
+        if trusted[i]:
+            cam_from_world = invert_rigid(capture.frames[i].T_world_from_cam)[:3]
+            rec.frame(image.frame_id).rig_from_world = pycolmap.Rigid3d(cam_from_world)
+            rec.register_frame(image.frame_id)
+    return rec
+
+
+def _drop_weak_frames(rec: Any, min_observations: int) -> None:
+    """Unregister the frames with fewer than ``min_observations`` triangulated points."""
+    import pycolmap
+
+    manager = pycolmap.ObservationManager(rec)
+    for image in list(rec.images.values()):
+        if image.has_pose and image.num_points3D < min_observations:
+            manager.deregister_frame(image.frame_id)
+
+
+def known_pose_mapping(capture: Capture, db: Path, scratch: Path, cfg: SfmConfig,
+                       trusted: np.ndarray) -> Any:
+    """Triangulate the matches in ``db`` from the AR poses of the ``trusted`` frames of
+    ``capture``, then refine poses and points by bundle adjustment and re-triangulate with the
+    refined poses.
+
+    The AR poses are within millimetres and a few tenths of a degree of the truth, well inside
+    the triangulator's 2-degree ray tolerance, so the tracks form as they would from exact
+    poses; bundle adjustment then removes the AR error up to a similarity, which
+    :func:`align_to_ar` fits. Frames whose AR pose disagrees with their matches triangulate
+    few points and are left unregistered.
+    """
+    import pycolmap
+
+    rec = _ar_posed_reconstruction(capture, db, trusted)
+    scratch.mkdir(parents=True, exist_ok=True)  # pycolmap writes each round's model there
+    triangulation = pycolmap.IncrementalPipelineOptions(num_threads=cfg.num_threads,
+                                                        random_seed=cfg.seed)
+    ba = pycolmap.BundleAdjustmentOptions(refine_focal_length=False,
+                                          refine_principal_point=False,
+                                          refine_extra_params=False, print_summary=False)
+    ba.ceres.solver_options.max_num_iterations = cfg.ba_max_iterations
+    ba.ceres.solver_options.num_threads = cfg.num_threads
+    for round_ in range(cfg.known_pose_rounds + 1):
+        rec = pycolmap.triangulate_points(rec, db, capture.root, scratch / f"round{round_}",
+                                          options=triangulation)
+        _drop_weak_frames(rec, cfg.min_observations_per_frame)
+        if rec.num_reg_images() < 3:
+            break
+        pycolmap.bundle_adjustment(rec, ba)
+    return rec
 
 
 def align_to_ar(capture: Capture, rec: Any, cfg: SfmConfig) -> SfmResult:
