@@ -6,8 +6,9 @@ Usage: .venv/bin/python benchmarks/bench_volume.py [--scenario full_orbit_sharp]
 
 The captures and stage results live under data/bench-sfm (shared with the notebooks; keyed on
 the config and the code, so nothing stale is reused). Writes
-figures/table1_volume_SCENARIO.{csv,md} and figures/surface_offset_SCENARIO.{csv,md}, and
-prints both. ``full_orbit_sharp`` is the full orbit rendered with the first benchmark's look
+figures/table1_volume_SCENARIO.{csv,md}, figures/surface_offset_SCENARIO.{csv,md} and
+figures/table2_SCENARIO.{csv,md} (the methods side by side, as notebook 07), and prints
+them. ``full_orbit_sharp`` is the full orbit rendered with the first benchmark's look
 (one ray per pixel, a point light, no blur), for comparison with the phone look of
 ``full_orbit``.
 """
@@ -16,7 +17,13 @@ from __future__ import annotations
 
 import argparse
 
-from volec.experiments import scenarios, surface_offset_table, volume_experiment, volume_table
+from volec.experiments import (
+    method_table,
+    scenarios,
+    surface_offset_table,
+    volume_experiment,
+    volume_table,
+)
 from volec.paths import experiment_dir, figures_dir
 from volec.synth import item_names
 from volec.tables import write_table
@@ -31,7 +38,8 @@ def main() -> None:
     raw = volume_experiment(experiment_dir(False), args.items, scenarios(False)[args.scenario],
                             workers=args.workers)
     for name, table in (("table1_volume", volume_table(raw)),
-                        ("surface_offset", surface_offset_table(raw))):
+                        ("surface_offset", surface_offset_table(raw)),
+                        ("table2", method_table(raw))):
         write_table(table, figures_dir() / f"{name}_{args.scenario}", float_digits=3)
         print(table.to_string(index=False, float_format=lambda x: f"{x:.3f}"))
 

@@ -18,11 +18,12 @@
 #
 # The phone's AR poses are metric but drift; COLMAP's are consistent but unscaled. volec runs
 # pycolmap SfM (SIFT, pairs chosen from the AR poses, points triangulated from the AR poses,
-# then bundle adjustment) and maps the model into the AR world: the rotation from the AR orientations, the scale from short-baseline AR
-# displacements (drift cancels there) or from a Sim(3) fit to all camera centres. The table
-# compares both against the exact poses of synthetic captures: full orbits, half orbits, and 1 cm
-# of AR drift. Captures not cached yet run two at a time (`workers`), so their `wall_s` is that
-# of two runs sharing the 2 cores (`benchmarks/bench_sfm.py` times one alone).
+# then bundle adjustment) and maps the model into the AR world: the rotation from the AR
+# orientations, the scale from short-baseline AR displacements (drift cancels there) or from a
+# Sim(3) fit to all camera centres. The table compares both against the exact poses of
+# synthetic captures: full orbits, half orbits, and 1 cm of AR drift. Captures not cached yet
+# run two at a time (`workers`), so their `wall_s` is that of two runs sharing the 2 cores
+# (`benchmarks/bench_sfm.py` times one alone).
 
 # %% tags=["parameters"]
 # Parameters (papermill overrides these)

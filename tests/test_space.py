@@ -18,8 +18,10 @@ from volec.space import (
     SpaceConfig,
     SpaceGrid,
     observed_space,
+    visual_hull_mesh,
     volume_bounds,
 )
+from volec.volume import volume_ml
 
 R = 0.03
 CENTRE = np.array([0.0, 0.0, R])
@@ -117,3 +119,18 @@ def test_without_views_nothing_is_seen_empty_but_below_the_table():
     assert (states[points[:, 2] < -0.003] == EMPTY).all()
     assert np.isin(states, [EMPTY, FOOD, UNKNOWN]).all()
     assert pytest.approx(space.cell_ml) == 0.003**3 * 1e6
+
+
+def test_the_visual_hull_holds_the_sphere_and_is_closed():
+    cloud, views = _scene(360.0)
+    hull = visual_hull_mesh(cloud, views, TABLE)
+    hull_ml = volume_ml(hull)  # raises on an open mesh
+    # the hull holds the sphere, and adds the space under it that no view could carve (the
+    # cameras look down from 20-50 degrees): more than the sphere, less than its bounding box
+    assert TRUTH_ML < hull_ml < (2 * R) ** 3 * 1e6
+    rng = np.random.default_rng(0)
+    d = rng.normal(size=(2000, 3))
+    inner = CENTRE + 0.9 * R * d / np.linalg.norm(d, axis=1, keepdims=True)
+    assert hull.contains(inner).all()
+    # and it is cut at the table
+    assert hull.bounds[0, 2] > -SpaceConfig().pitch_m

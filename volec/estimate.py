@@ -31,14 +31,19 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import trimesh
 
 from volec import __version__
 from volec.capture import Capture
-from volec.completion.complete import SHIPPED_CHECKPOINT, CompletionConfig, complete_cloud
+from volec.completion.complete import (
+    SHIPPED_CHECKPOINT,
+    CompletionConfig,
+    complete_cloud,
+    mirror_completion,
+)
 from volec.completion.model import SymmCompletion
 from volec.dense import PRESETS as DENSE_PRESETS
 from volec.dense import DenseConfig
@@ -91,8 +96,12 @@ class EstimateConfig:
     """Settings of every stage of :func:`run_estimate`."""
 
     use_completion: bool = True
-    """Complete the masked cloud with the network before meshing (False: the VolE-style
-    baseline, where only the support plane and Poisson close the unseen underside)."""
+    """Complete the masked cloud before meshing (False: the VolE-style baseline, where only
+    the support plane and Poisson close the unseen underside)."""
+    completion_method: Literal["network", "mirror"] = "network"
+    """``network``: the trained SymmCompletion network; ``mirror``: the cloud's reflection in
+    its best mirror plane (the non-learned baseline, :mod:`volec.completion.mirror`), merged
+    the same way."""
     checkpoint: str = ""
     """Completion checkpoint; empty: the one shipped with volec."""
     keyframes: KeyframeConfig = field(default_factory=KeyframeConfig)
@@ -238,15 +247,21 @@ def food_mesh(masked: PointCloud, scene: PointCloud, up: np.ndarray | None,
         problem = str(e)
     cloud, summary = masked, None
     completion_s = 0.0
-    if model is not None:
+    completed = model is not None or (cfg.use_completion and cfg.completion_method == "mirror")
+    if completed:
         t = time.perf_counter()
-        completion = complete_cloud(masked, model, cfg.completion)
-        cloud, summary = completion.cloud, completion.summary
+        if model is not None:
+            completion = complete_cloud(masked, model, cfg.completion)
+        else:
+            plane_up = support.normal if support is not None else up
+            completion = mirror_completion(masked, plane_up, cfg.completion)
+        cloud, summary = completion.cloud, {"method": cfg.completion_method,
+                                            **completion.summary}
         completion_s = time.perf_counter() - t
     mesh = mesh_cloud(cloud, support, cfg.meshing, silhouettes)
     volume = volume_ml(mesh.mesh)
     share = None
-    if model is not None:
+    if completed:
         share = completion_share(mesh.mesh, cloud, len(masked), cfg.completion_share_pitch_m)
     meshing_s = time.perf_counter() - start - completion_s
     return FoodMesh(cloud, mesh, volume, support, problem, summary, share,
@@ -343,7 +358,7 @@ def estimate_from_stages(capture: Capture, stages: StageResults, model: SymmComp
     )
     reasons = assess(facts, cfg.trust)
     warnings = [r.message for r in reasons] + _notes(capture, stages, food, scale,
-                                                     model is not None)
+                                                     food.completion_summary is not None)
     return Estimate(food, reasons, warnings, coverage, view_up, bounds, bounds_s)
 
 
@@ -459,7 +474,7 @@ def estimate_record(capture: Capture, stages: StageResults, est: Estimate, cfg: 
         "completion_share": food.completion_share,
         "capture": str(capture.root),
         "checkpoint": (str(checkpoint_path(cfg)) if food.completion_summary is not None
-                       else None),
+                       and cfg.completion_method == "network" else None),
         "volec_version": __version__,
         "config": json_data(cfg),
     }
@@ -521,7 +536,8 @@ def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = N
     capture = keyframe_capture(capture, selection)
     if masks_source(capture, cfg.masks) == "given":  # checked before any work
         check_masks(given_masks(capture), cfg.masking.checks)
-    model = load_completion_model(cfg) if cfg.use_completion else None
+    model = (load_completion_model(cfg)
+             if cfg.use_completion and cfg.completion_method == "network" else None)
     identity = capture_identity(capture)
     with folder_lock(out_dir):
         preflight(out_dir, {RESULT_FILE: result_provenance(identity, cfg, None)}, overwrite,

@@ -580,18 +580,23 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
             "silhouettes_s": silhouettes_s,
             **signed_summary(masked_signed, "masked"),
         }
-        for tag, net in (("no_completion", None), ("completion", model)):
-            variant = replace(cfg, use_completion=net is not None)
+        variants = {"no_completion": (replace(cfg, use_completion=False), None),
+                    "mirror": (replace(cfg, use_completion=True, completion_method="mirror"),
+                               None),
+                    "completion": (replace(cfg, use_completion=True,
+                                           completion_method="network"), model)}
+        support = None
+        for tag, (variant, net) in variants.items():
             est = estimate_from_stages(capture, stages, net, variant, silhouettes, scale)
             made = est.food
+            support = support or made.support
             write_bytes_atomic(work / f"mesh_{tag}.ply", made.mesh.mesh.export(file_type="ply"))
             if net is not None:
                 write_ply(with_normals(made.cloud), work / "food_completed.ply")
-            mesh_points = sample_surface(made.mesh.mesh, 20000, seed=0)
-            cd_l1, _ = chamfer_distance(mesh_points, truth_points)
-            cloud_l1, _ = chamfer_distance(made.cloud.xyz, truth_points)
-            row |= {f"{tag}_ml": made.volume_ml, f"{tag}_chamfer_mm": 1000 * cd_l1,
-                    f"{tag}_cloud_chamfer_mm": 1000 * cloud_l1,
+            row |= {f"{tag}_ml": made.volume_ml,
+                    **_mesh_scores(made.mesh.mesh, truth_points, tag),
+                    f"{tag}_cloud_chamfer_mm":
+                        1000 * chamfer_distance(made.cloud.xyz, truth_points)[0],
                     f"{tag}_support_found": made.support is not None,
                     f"{tag}_carved_fraction": made.mesh.report.get("carved_fraction", 0.0),
                     f"{tag}_trusted": est.trusted,
@@ -602,9 +607,36 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
                     f"{tag}_unknown_share": est.bounds.unknown_share,
                     **mesh_offset_scores(made.mesh.mesh, truth_mesh, prefix=f"{tag}_mesh"),
                     **{f"{tag}_{k}": v for k, v in made.seconds.items()}}
+        row |= _ar_visual_hull_scores(capture, stages, cfg, support, truth_points)
         return row
 
     return cached_row(work / VOLUME_CACHE, key, run)
+
+
+def _mesh_scores(mesh: Any, truth_points: np.ndarray, tag: str) -> dict[str, float]:
+    """The mesh's Chamfer-L1 distance to the true surface (mm), under ``TAG_chamfer_mm``."""
+    mesh_points = sample_surface(mesh, 20000, seed=0)
+    return {f"{tag}_chamfer_mm": 1000 * chamfer_distance(mesh_points, truth_points)[0]}
+
+
+def _ar_visual_hull_scores(capture: Capture, stages: Any, cfg: EstimateConfig,
+                           support: Any, truth_points: np.ndarray) -> dict[str, Any]:
+    """The visual hull of the food masks from the AR poses alone (no SfM, no depth), above
+    the support plane the pipeline found: its volume and Chamfer distance (``visual_hull_*``).
+    """
+    from volec.masking import usable_masks
+    from volec.meshing import silhouette_views
+    from volec.space import visual_hull_mesh
+    from volec.volume import volume_ml
+
+    start = time.perf_counter()
+    use = usable_masks(stages.masks, stages.masked.report["unusable_masks"])
+    ar_poses = np.stack([f.T_world_from_cam for f in capture.frames])
+    views = silhouette_views(capture, stages.masks, ar_poses, use,
+                             cfg.meshing.silhouette_max_views)
+    hull = visual_hull_mesh(stages.masked.cloud, views, support, cfg.space)
+    return {"visual_hull_ml": volume_ml(hull), **_mesh_scores(hull, truth_points, "visual_hull"),
+            "visual_hull_s": time.perf_counter() - start}
 
 
 def volume_experiment(root: Path, items: list[str], scenario: Scenario,
@@ -1044,24 +1076,91 @@ def signed_surfaces(root: Path, items: list[str], scenario: Scenario, tag: str =
     return out
 
 
-def paired_tests(raw: pd.DataFrame) -> pd.DataFrame:
-    """The paper's Table III: paired t-tests, with against without completion, of the
-    absolute percentage volume errors and of the meshes' Chamfer distances to the truth."""
+#: Table II's methods, as ``volume_row`` tags them, and how the table names them.
+METHODS = {
+    "visual_hull": "visual hull (AR poses)",
+    "no_completion": "VolE-style (no completion)",
+    "mirror": "mirror completion",
+    "completion": "network completion (default)",
+}
+DEFAULT_METHOD = "completion"
+
+
+def _ape(raw: pd.DataFrame, tag: str) -> pd.Series:
+    return 100 * (raw[f"{tag}_ml"] - raw["gt_ml"]).abs() / raw["gt_ml"]
+
+
+def method_table(raw: pd.DataFrame) -> pd.DataFrame:
+    """The paper's Table II for one scenario: per item the true volume and, per method of
+    :data:`METHODS`, the volume, its absolute percentage error and the mesh's Chamfer-L1
+    distance to the true surface (mm); then the mean and the standard deviation over the items
+    (items whose pipeline failed are left out of both)."""
+    ok = raw[raw["error"].isna()] if "error" in raw else raw
+    table = pd.DataFrame({"item": ok["label"], "gt_ml": ok["gt_ml"]})
+    for tag in METHODS:
+        table[f"{tag}_ml"] = ok[f"{tag}_ml"]
+        table[f"{tag}_ape_pct"] = _ape(ok, tag)
+        table[f"{tag}_chamfer_mm"] = ok[f"{tag}_chamfer_mm"]
+    numbers = table.drop(columns="item")
+    summary = pd.DataFrame([numbers.mean(), numbers.std(ddof=1)])
+    summary.insert(0, "item", ["mean", "std"])
+    return pd.concat([table, summary], ignore_index=True)
+
+
+def paired_tests(raw: pd.DataFrame, baseline: str = "no_completion",
+                 method: str = DEFAULT_METHOD) -> pd.DataFrame:
+    """The paper's Table III: paired t-tests of ``method`` against ``baseline`` (tags of
+    :data:`METHODS`; by default with against without completion), of the absolute percentage
+    volume errors and of the meshes' Chamfer distances to the truth. Items whose pipeline
+    failed are left out."""
     from scipy.stats import ttest_rel
 
+    ok = raw[raw["error"].isna()] if "error" in raw else raw
     rows = []
-    ape = {tag: 100 * (raw[f"{tag}_ml"] - raw["gt_ml"]).abs() / raw["gt_ml"]
-           for tag in ("no_completion", "completion")}
-    chamfer = {tag: raw[f"{tag}_chamfer_mm"] for tag in ("no_completion", "completion")}
-    for measure, values in (("absolute volume error (%)", ape),
-                            ("mesh Chamfer-L1 to the true surface (mm)", chamfer)):
-        a, b = values["no_completion"].to_numpy(), values["completion"].to_numpy()
+    for measure, values in (("absolute volume error (%)", lambda t: _ape(ok, t)),
+                            ("mesh Chamfer-L1 to the true surface (mm)",
+                             lambda t: ok[f"{t}_chamfer_mm"])):
+        a, b = values(baseline).to_numpy(float), values(method).to_numpy(float)
         test = ttest_rel(a, b) if len(a) > 1 else None
-        rows.append({"measure": measure, "items": len(a), "mean_without": a.mean(),
+        rows.append({"measure": measure, "baseline": baseline, "method": method,
+                     "items": len(a), "mean_without": a.mean(),
                      "mean_with": b.mean(), "mean_difference": (a - b).mean(),
                      "t": np.nan if test is None else float(test.statistic),
                      "p": np.nan if test is None else float(test.pvalue)})
     return pd.DataFrame(rows)
+
+
+def method_tests(raws: dict[str, pd.DataFrame]) -> pd.DataFrame:
+    """Table III over scenarios: per scenario (``raws``: name -> :func:`volume_experiment`
+    rows), the default method against each other method of :data:`METHODS`, paired t-tests
+    of volume error and Chamfer distance (``mean_without`` is the other method's mean,
+    ``mean_with`` the default's; a positive ``mean_difference`` favours the default)."""
+    tables = [paired_tests(raw, other, DEFAULT_METHOD).assign(scenario=name)
+              for name, raw in raws.items() for other in METHODS if other != DEFAULT_METHOD]
+    table = pd.concat(tables, ignore_index=True)
+    return table[["scenario"] + [c for c in table.columns if c != "scenario"]]
+
+
+def completion_clouds(root: Path, items: list[str], scenario: Scenario
+                      ) -> dict[str, dict[str, np.ndarray]]:
+    """Fig. 1: per item of :func:`volume_experiment` (run before), the observed (masked)
+    cloud, the cloud the network completed, and the true surface, turned so that the
+    capture's up is +z, for :func:`volec.viz.cloud_grid`."""
+    from volec.geometry import horizontal_axes
+    from volec.pointcloud import read_ply
+    from volec.synth import load_truth
+
+    out = {}
+    for item in items:
+        folder = ensure_capture(root, item, scenario)
+        work = scenario.work(folder)
+        side, other = horizontal_axes(np.asarray(load_truth(folder)["world_up"], float))
+        up_to_z = np.stack([side, other, np.cross(side, other)])
+        truth = sample_surface(load_ground_truth_mesh(folder), 20000, seed=0)
+        out[item] = {"observed": read_ply(work / "food_masked.ply").xyz @ up_to_z.T,
+                     "completed": read_ply(work / "food_completed.ply").xyz @ up_to_z.T,
+                     "true surface": truth @ up_to_z.T}
+    return out
 
 
 def runtime_table(raw: pd.DataFrame) -> pd.DataFrame:

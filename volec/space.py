@@ -31,6 +31,7 @@ from itertools import product
 from typing import Any
 
 import numpy as np
+import trimesh
 
 from volec.meshing import SilhouetteView, SupportPlane, silhouette_field
 from volec.pointcloud import PointCloud
@@ -357,3 +358,30 @@ def volume_bounds(space: SpaceGrid, inside: np.ndarray, volume_ml: float) -> Vol
         unknown_share=unknown_in / n_inside,
         empty_share=int((inside & (states == EMPTY)).sum()) / n_inside,
         high_open=space.upper_open)
+
+
+def visual_hull_mesh(cloud: PointCloud, views: list[SilhouetteView],
+                     support: SupportPlane | None = None, cfg: SpaceConfig | None = None
+                     ) -> trimesh.Trimesh:
+    """The visual hull of the ``views``' food masks above the support plane, as a closed mesh
+    (marching cubes at ``cfg.pitch_m``): the baseline that needs no depth at all. A point is
+    outside when ``cfg.min_views`` views see it outside their masks (:func:`outside_hull`).
+    The hull is only sought within the grid around ``cloud`` (its extent grown by
+    ``cfg.margin_share``): where the views leave it open (the side a half orbit never saw) it
+    is cut at that border."""
+    from skimage.measure import marching_cubes
+
+    cfg = cfg or SpaceConfig()
+    lower, shape = grid_frame(cloud, support, cfg)
+    grid = SpaceGrid(lower, cfg.pitch_m, np.zeros(shape, np.int8))
+    points = grid.points()
+    inside = ~outside_hull(points, views, cfg)
+    if support is not None:
+        inside &= support.height_m(points) >= 0
+    # padded with empty space, so the surface closes at the grid's border
+    occupancy = np.pad(inside.reshape(shape).astype(np.float32), 1)
+    vertices, faces, _, _ = marching_cubes(occupancy, level=0.5, gradient_direction="ascent")
+    mesh = trimesh.Trimesh(lower + (vertices - 1.0) * cfg.pitch_m, faces, process=True)
+    if mesh.volume < 0:
+        mesh.invert()
+    return mesh

@@ -37,3 +37,22 @@ def test_mirror_completion_fills_the_missing_end_and_respects_the_support_plane(
                                        np.array([0, 0, 1.0]), 0.01), partial, atol=1e-12)
     clipped = mirror_complete(partial, up=np.array([0.0, 0.0, 1.0]))
     assert clipped[:, 2].min() >= partial[:, 2].min() - 1e-12
+
+
+def test_the_pipeline_mirror_completion_adds_only_what_was_missing():
+    from scipy.spatial import cKDTree
+
+    from volec.completion.complete import CompletionConfig, mirror_completion
+    from volec.pointcloud import PREDICTED_RGB, PointCloud
+
+    partial, full = _cut_shape()
+    cfg = CompletionConfig(missing_only_gap_m=0.004)
+    done = mirror_completion(PointCloud(partial), np.array([0.0, 0.0, 1.0]), cfg)
+    added = done.predicted_xyz
+    assert len(done.cloud) == len(partial) + len(added)
+    np.testing.assert_array_equal(done.cloud.xyz[:len(partial)], partial)
+    # what it adds is the cut-away end, on the true surface, and none of it near the partial
+    assert added[:, 0].min() > 0.0 and added[:, 0].max() > 0.055
+    assert np.median(cKDTree(full).query(added)[0]) < 1e-3
+    assert cKDTree(partial).query(added)[0].min() > 0.004
+    assert done.cloud.rgb is None or (done.cloud.rgb[len(partial):] == PREDICTED_RGB).all()

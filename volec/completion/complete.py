@@ -78,13 +78,7 @@ def complete_cloud(partial: PointCloud, model: SymmCompletion,
                    cfg: CompletionConfig | None = None) -> Completion:
     """Complete ``partial`` with ``model`` (see the module docstring)."""
     cfg = cfg or CompletionConfig()
-    if len(partial) < cfg.min_points:
-        raise VolecError(
-            f"the partial cloud has {len(partial)} points; completion needs at least "
-            f"{cfg.min_points} (is it the masked food cloud?)"
-        )
-    if not np.all(np.isfinite(partial.xyz)):
-        raise VolecError("the partial cloud has non-finite coordinates")
+    _check_partial(partial, cfg)
     start = time.perf_counter()
     norm = fit_normalization(partial.xyz)
     rng = np.random.default_rng(cfg.seed)
@@ -95,6 +89,23 @@ def complete_cloud(partial: PointCloud, model: SymmCompletion,
         out = model(torch.from_numpy(x[None]).float().to(device))[-1][0].cpu().numpy()
     predicted = remove_statistical_outliers(norm.invert(out.astype(float)),
                                             cfg.outlier_neighbours, cfg.outlier_std_ratio)
+    return merged_completion(partial, predicted, norm, cfg, len(out), start)
+
+
+def _check_partial(partial: PointCloud, cfg: CompletionConfig) -> None:
+    if len(partial) < cfg.min_points:
+        raise VolecError(
+            f"the partial cloud has {len(partial)} points; completion needs at least "
+            f"{cfg.min_points} (is it the masked food cloud?)"
+        )
+    if not np.all(np.isfinite(partial.xyz)):
+        raise VolecError("the partial cloud has non-finite coordinates")
+
+
+def merged_completion(partial: PointCloud, predicted: np.ndarray, norm: Normalization,
+                      cfg: CompletionConfig, predicted_points: int, start: float) -> Completion:
+    """The :class:`Completion` of ``partial`` by the ``predicted`` points (metres), merged
+    as ``cfg`` says (only those farther than ``missing_only_gap_m`` from the partial)."""
     if cfg.merge_partial and cfg.missing_only_gap_m > 0:
         from scipy.spatial import cKDTree
 
@@ -109,7 +120,31 @@ def complete_cloud(partial: PointCloud, model: SymmCompletion,
         cloud = PointCloud(np.concatenate([partial.xyz, predicted]), rgb, normals)
     else:
         cloud = PointCloud(predicted, magenta)
-    summary = {"partial_points": len(partial), "predicted_points": int(len(out)),
+    summary = {"partial_points": len(partial), "predicted_points": int(predicted_points),
                "predicted_kept": int(len(predicted)), "points": len(cloud),
                "seconds": round(time.perf_counter() - start, 3)}
     return Completion(cloud, predicted, norm, summary)
+
+
+def mirror_completion(partial: PointCloud, up: np.ndarray | None,
+                      cfg: CompletionConfig | None = None, fit_points: int = 10000
+                      ) -> Completion:
+    """Complete ``partial`` by its reflection in its best mirror plane
+    (:mod:`volec.completion.mirror`, fitted on at most ``fit_points`` of it), the reflected
+    points merged as the network's are; with ``up``, reflected points below the partial's
+    lowest point are dropped."""
+    from volec.completion.mirror import fit_mirror_plane, reflect
+
+    cfg = cfg or CompletionConfig()
+    _check_partial(partial, cfg)
+    start = time.perf_counter()
+    rng = np.random.default_rng(cfg.seed)
+    sample = partial.xyz[rng.choice(len(partial), min(fit_points, len(partial)),
+                                    replace=False)]
+    normal, offset = fit_mirror_plane(sample)
+    mirrored = reflect(partial.xyz, normal, offset)
+    if up is not None:
+        up = np.asarray(up, float) / np.linalg.norm(up)
+        mirrored = mirrored[mirrored @ up >= (partial.xyz @ up).min()]
+    return merged_completion(partial, mirrored, fit_normalization(partial.xyz), cfg,
+                             len(mirrored), start)
