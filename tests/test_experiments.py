@@ -10,7 +10,17 @@ import pytest
 
 from volec.capture import Capture, Frame, Intrinsics
 from volec.errors import ConfigError
-from volec.experiments import cached_row, frame_subset, map_items, scenarios, volume_table
+from volec.experiments import (
+    DEFAULT_METHOD,
+    METHODS,
+    cached_row,
+    frame_subset,
+    map_items,
+    method_table,
+    method_tests,
+    scenarios,
+    volume_table,
+)
 from volec.geometry import look_at_opencv
 
 
@@ -154,3 +164,45 @@ def test_table_i_shows_a_failed_item_and_averages_over_the_others():
     assert table.loc["mean", "without_ape_pct"] == pytest.approx((2.0 + 2.0) / 2)
     assert table.loc["mean", "with_ape_pct"] == pytest.approx((1.0 + 1.5) / 2)
     assert "failed" not in volume_table(raw.drop(index=1)).columns
+
+
+def _methods_raw() -> pd.DataFrame:
+    """Three items scored by every method, and a fourth whose SfM failed."""
+    rows = []
+    for k, (label, gt) in enumerate((("A", 100.0), ("B", 200.0), ("C", 50.0))):
+        row = {"item": label.lower(), "label": label, "gt_ml": gt}
+        for m, tag in enumerate(METHODS):
+            row[f"{tag}_ml"] = gt * (1 + 0.01 * (m + 1) * (k + 1) * (-1) ** m)
+            row[f"{tag}_chamfer_mm"] = 1.0 + 0.1 * m + 0.05 * k + 0.02 * m * k * k
+        rows.append(row)
+    rows.append({"item": "d", "label": "D", "gt_ml": 80.0, "error": "SfmError: no"})
+    return pd.DataFrame(rows)
+
+
+def test_table_ii_has_every_method_with_the_mean_and_spread_of_the_items_that_ran():
+    table = method_table(_methods_raw())
+    assert list(table["item"]) == ["A", "B", "C", "mean", "std"]
+    for m, tag in enumerate(METHODS):
+        apes = [abs(0.01 * (m + 1) * (k + 1)) * 100 for k in range(3)]
+        assert table.loc[3, f"{tag}_ape_pct"] == pytest.approx(np.mean(apes))
+        assert table.loc[4, f"{tag}_ape_pct"] == pytest.approx(np.std(apes, ddof=1))
+        assert table.loc[3, f"{tag}_chamfer_mm"] == pytest.approx(
+            np.mean([1.0 + 0.1 * m + 0.05 * k + 0.02 * m * k * k for k in range(3)]))
+
+
+def test_table_iii_tests_the_default_against_each_other_method_per_scenario():
+    from scipy.stats import ttest_rel
+
+    raw = _methods_raw()
+    table = method_tests({"half_orbit": raw, "sparse": raw})
+    others = [t for t in METHODS if t != DEFAULT_METHOD]
+    assert len(table) == 2 * 2 * len(others)
+    row = table[(table.scenario == "sparse") & (table.baseline == "visual_hull")
+                & table.measure.str.startswith("absolute")].iloc[0]
+    ok = raw.iloc[:3]
+    ape = {t: 100 * (ok[f"{t}_ml"] - ok["gt_ml"]).abs() / ok["gt_ml"]
+           for t in ("visual_hull", DEFAULT_METHOD)}
+    expected = ttest_rel(ape["visual_hull"], ape[DEFAULT_METHOD])
+    assert row["items"] == 3
+    assert row["t"] == pytest.approx(expected.statistic)
+    assert row["p"] == pytest.approx(expected.pvalue)
