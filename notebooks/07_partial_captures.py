@@ -13,8 +13,6 @@
 #     name: volec
 # ---
 
-# %%
-
 # %% [markdown]
 # # 07 · Partial captures: the paper's Table II, Table III and Fig. 1
 #
