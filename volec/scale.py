@@ -62,11 +62,16 @@ class ScaleCheck:
 
 
 def fixation_point(capture: Capture) -> np.ndarray:
-    """The point nearest to all optical axes in the least-squares sense (what an orbit looks
-    at). Where the axes are (nearly) parallel there is none: then the point as far in front
-    of the mean camera as the cameras are spread."""
-    centres = capture.camera_centres
-    axes = np.stack([f.T_world_from_cam[:3, 2] for f in capture.frames])
+    """The point nearest to all of ``capture``'s optical axes (:func:`fixation_of_poses`)."""
+    return fixation_of_poses(np.stack([f.T_world_from_cam for f in capture.frames]))
+
+
+def fixation_of_poses(T_world_from_cam: np.ndarray) -> np.ndarray:
+    """The point nearest to the optical axes of the cameras (N, 4, 4) in the least-squares
+    sense (what an orbit looks at). Where the axes are (nearly) parallel there is none: then
+    the point as far in front of the mean camera as the cameras are spread."""
+    centres = T_world_from_cam[:, :3, 3]
+    axes = T_world_from_cam[:, :3, 2]
     projectors = np.eye(3)[None] - axes[:, :, None] * axes[:, None, :]
     A = projectors.sum(axis=0)
     b = np.einsum("nij,nj->i", projectors, centres)

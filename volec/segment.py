@@ -41,6 +41,7 @@ from scipy import ndimage
 from volec.capture import Capture, Intrinsics, read_mask
 from volec.errors import VolecError
 from volec.progress import progress_over
+from volec.scale import fixation_of_poses
 
 log = logging.getLogger(__name__)
 
@@ -198,14 +199,6 @@ class SceneGeometry:
         return np.asarray(points) @ self.normal + self.offset_m
 
 
-def _fixation(T_world_from_cam: np.ndarray) -> np.ndarray:
-    centres = T_world_from_cam[:, :3, 3]
-    axes = T_world_from_cam[:, :3, 2]
-    projectors = np.eye(3)[None] - axes[:, :, None] * axes[:, None, :]
-    return np.linalg.lstsq(projectors.sum(axis=0),
-                           np.einsum("nij,nj->i", projectors, centres), rcond=None)[0]
-
-
 def _support_plane(points: np.ndarray, centres: np.ndarray, up: np.ndarray | None,
                    cfg: SegmentConfig, seed: int) -> tuple[np.ndarray, float, np.ndarray]:
     """(normal towards the cameras, offset, inlier mask) of the dominant plane in ``points``
@@ -341,7 +334,7 @@ def find_item(T_world_from_cam: np.ndarray, points: np.ndarray, up: np.ndarray |
               cfg: SegmentConfig) -> SceneGeometry:
     """The support plane and the item on it, from the registered cameras (N, 4, 4) and the
     sparse points (M, 3) (see the module docstring, steps 1-3)."""
-    fixation = _fixation(T_world_from_cam)
+    fixation = fixation_of_poses(T_world_from_cam)
     centres = T_world_from_cam[:, :3, 3]
     distance = float(np.median(np.linalg.norm(centres - fixation, axis=1)))
     if up is not None:
