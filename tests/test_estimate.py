@@ -93,6 +93,21 @@ def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys
     assert snapshot(out) == stages
 
 
+def test_volec_estimate_with_mirror_completion(small_capture, small_result, tmp_path, capsys):
+    out = tmp_path / "mirror"
+    shutil.copytree(small_capture / "work" / "sfm", out / "sfm")  # SfM is reused
+    assert main(["estimate", str(small_capture / "capture"), "--out", str(out), "--quiet",
+                 "--completion", "mirror"]) == 0
+    result = json.loads((out / "result.json").read_text())
+    assert result["completion_used"] and result["completion"]["method"] == "mirror"
+    assert result["checkpoint"] is None  # no network was used
+    completed = read_ply(out / "food_completed.ply")
+    masked = read_ply(out / "food_masked.ply")
+    assert len(completed) == len(masked) + result["completion"]["predicted_kept"] > len(masked)
+    assert volume_ml(trimesh.load(out / "mesh.ply")) == pytest.approx(result["volume_ml"],
+                                                                      rel=1e-6)
+
+
 def test_orbit_coverage_of_cameras_on_arcs():
     angles = np.radians(np.arange(0, 100, 5.0))
     arc = np.c_[np.cos(angles), np.sin(angles), np.full_like(angles, 0.5)]

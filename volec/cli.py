@@ -199,7 +199,7 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
 
     capture, scale = _open_capture(args)
     cfg = replace(PRESETS[args.preset], use_completion=not args.no_completion,
-                  checkpoint=args.checkpoint or "")
+                  completion_method=args.completion, checkpoint=args.checkpoint or "")
     if args.mask_preset is not None:
         cfg = replace(cfg, masking=MASK_PRESETS[args.mask_preset])
     cfg = replace(cfg, masks=args.masks,
@@ -418,6 +418,9 @@ def build_parser() -> argparse.ArgumentParser:
     estimate.add_argument("--out", required=True, type=Path, help="output folder")
     estimate.add_argument("--no-completion", action="store_true",
                           help="mesh the masked cloud as it is (the VolE-style baseline)")
+    estimate.add_argument("--completion", default="network", choices=["network", "mirror"],
+                          help="what completes the masked cloud: the shipped network "
+                          "(default) or its reflection in its best mirror plane")
     estimate.add_argument("--preset", default="default",
                           choices=["default", "fast", "tolerant_masks"],
                           help="fast: coarser dense stereo and meshing; tolerant_masks: for "

@@ -255,8 +255,8 @@ def food_mesh(masked: PointCloud, scene: PointCloud, up: np.ndarray | None,
         else:
             plane_up = support.normal if support is not None else up
             completion = mirror_completion(masked, plane_up, cfg.completion)
-        cloud, summary = completion.cloud, {"method": cfg.completion_method,
-                                            **completion.summary}
+        method = "network" if model is not None else "mirror"
+        cloud, summary = completion.cloud, {"method": method, **completion.summary}
         completion_s = time.perf_counter() - t
     mesh = mesh_cloud(cloud, support, cfg.meshing, silhouettes)
     volume = volume_ml(mesh.mesh)

@@ -83,9 +83,10 @@ class SfmConfig:
     """How the model is built from the matches. ``known_poses``: points are triangulated from
     the AR poses, then poses and points are bundle-adjusted and the points re-triangulated
     (``known_pose_rounds`` times); ``incremental``: COLMAP's incremental mapping from scratch,
-    which ignores the AR poses (4-6 times slower on a 100-frame orbit). A known-pose model that
-    keeps fewer than ``min_registered_fraction`` of the frames (AR poses far off) falls back to
-    incremental mapping; ``summary.json`` records which one ran."""
+    which ignores the AR poses (its mapping step took 1.7 times as long on six 100-frame
+    orbits, for the same pose accuracy: ``benchmarks/bench_sfm_mapping.py``). A known-pose
+    model that keeps fewer than ``min_registered_fraction`` of the frames (AR poses far off)
+    falls back to incremental mapping; ``summary.json`` records which one ran."""
     known_pose_rounds: int = 1
     """``known_poses``: re-triangulation and bundle adjustment rounds after the first one."""
     max_ar_epipolar_error_deg: float = 3.0
