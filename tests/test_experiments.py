@@ -206,3 +206,19 @@ def test_table_iii_tests_the_default_against_each_other_method_per_scenario():
     assert row["items"] == 3
     assert row["t"] == pytest.approx(expected.statistic)
     assert row["p"] == pytest.approx(expected.pvalue)
+
+
+def test_scenarios_that_share_a_rendering_render_it_once_before_they_run(monkeypatch, tmp_path):
+    """full_orbit, half_orbit and sparse of one item are one rendering: made once, first (two
+    processes rendering it at once each replaced the folder under the other's SfM)."""
+    import volec.experiments as experiments
+
+    made = []
+    monkeypatch.setattr(experiments, "ensure_capture",
+                        lambda root, item, sc: made.append(sc.folder(root, item)) or root)
+    named = scenarios(False)
+    runs = [(item, named[name]) for name in ("full_orbit", "half_orbit", "sparse", "drift_1cm")
+            for item in ("apple", "pear")]
+    experiments.render_captures(tmp_path, runs)
+    assert sorted(p.name for p in made) == ["apple-drift_1cm", "apple-full_orbit",
+                                            "pear-drift_1cm", "pear-full_orbit"]

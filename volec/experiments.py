@@ -149,6 +149,23 @@ def ensure_capture(root: Path, item: str, scenario: Scenario) -> Path:
     return out
 
 
+def _rendered(root: Path, item: str, scenario: Scenario) -> dict[str, str]:
+    """The (item, scenario) capture, rendered if needed: a job of :func:`render_captures`."""
+    return {"folder": str(ensure_capture(root, item, scenario))}
+
+
+def render_captures(root: Path, runs: list[tuple[str, Scenario]], workers: int = 1,
+                    progress: bool = False) -> None:
+    """Make every capture folder the (item, scenario) ``runs`` need, each once, before any of
+    them runs: scenarios that share a rendering (``rendered_as``) would otherwise render it in
+    two processes at once, each replacing the folder under the other's work."""
+    first: dict[Path, tuple[str, Scenario]] = {}
+    for item, scenario in runs:
+        first.setdefault(scenario.folder(root, item), (item, scenario))
+    jobs = [(root, item, scenario) for item, scenario in first.values()]
+    map_items(_rendered, jobs, [f"{item} {sc.name}" for _, item, sc in jobs], workers, progress)
+
+
 def row_key(config: dict[str, Any], *modules: str, **extra: Any) -> dict[str, Any]:
     """The cache key of an experiment row: its config, the code of ``modules`` (with all they
     import) and of this module, and ``extra`` (e.g. a checkpoint's digest)."""
@@ -217,6 +234,7 @@ def sfm_experiment(
     rows = [_cached(sc.work(sc.folder(root, item)) / SFM_CACHE, sfm_key(cfg))
             for item, sc in runs]
     todo = [n for n, row in enumerate(rows) if row is None]
+    render_captures(root, [runs[n] for n in todo], workers, progress)
     computed = map_items(sfm_row, [(root, *runs[n], cfg) for n in todo],
                          [f"{runs[n][0]} {runs[n][1].name}" for n in todo], workers, progress)
     for n, row in zip(todo, computed, strict=True):
