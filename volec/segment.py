@@ -73,9 +73,14 @@ class SegmentConfig:
     max_fixation_gap: float = 0.25
     """The item's nearest point lies at most this far from the fixation point, as a share of
     the median camera distance (people aim roughly at the food)."""
-    merge_gap_m: float = 0.02
+    merge_gap_m: float = 0.01
     """Clusters this close to the item are part of it (a sparsely textured item falls apart
-    into several); a second object is farther."""
+    into several); a second object is farther. At 0.02 the chocolate croissant and the yellow
+    cane chained into the raised plate rim (a 300 mm "item", masks with the plate in them,
+    +260 % and +223 % in volume). At 0.01 the croissant is found at its own size (153 mm)
+    and the 16-frame cake of the tests still holds together; the yellow cane still chains
+    (it needs 0.005, which splits that cake): a rule that does not chain along the rim is
+    still to be found."""
     ambiguous_gap_m: float = 0.01
     """A second object at most this much farther from the fixation point than the nearest,
     and at least half its size, makes the choice ambiguous: an error."""
