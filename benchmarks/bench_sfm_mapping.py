@@ -22,7 +22,7 @@ from pathlib import Path
 import pandas as pd
 
 from volec.errors import VolecError
-from volec.experiments import ensure_capture, scenario_capture, scenarios
+from volec.experiments import Scenario, ensure_capture, scenario_capture, scenarios
 from volec.paths import experiment_dir, figures_dir
 from volec.sfm import SfmConfig, evaluate_sfm, run_sfm
 from volec.tables import write_table
@@ -30,9 +30,8 @@ from volec.tables import write_table
 MAPPINGS = ("incremental", "known_poses")
 
 
-def mapping_run(out: Path, scenario_name: str, mapping: str) -> dict[str, object]:
+def mapping_run(out: Path, scenario: Scenario, mapping: str) -> dict[str, object]:
     """One from-scratch SfM of the scenario's capture in ``out`` with ``mapping``, scored."""
-    scenario = scenarios(False)[scenario_name]
     reported = scenario_capture(out, scenario)
     exact = scenario_capture(out, scenario, exact=True)
     row: dict[str, object] = {"mapping": mapping, "frames": len(reported)}
@@ -68,7 +67,7 @@ def main() -> None:
             out = ensure_capture(root, item, scenario)
             for mapping in MAPPINGS:
                 row = {"item": item, "scenario": scenario_name,
-                       **mapping_run(out, scenario_name, mapping)}
+                       **mapping_run(out, scenario, mapping)}
                 print(row, flush=True)
                 rows.append(row)
     table = pd.DataFrame(rows)

@@ -557,8 +557,9 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
     (how many items ran at once, sharing the cores) is recorded with the times.
 
     The estimate is :func:`volec.estimate.estimate_from_stages`, exactly what ``volec estimate``
-    runs, once without and once with completion on the same stage results; the ground truth is
-    read only to score it."""
+    runs, once per method of :data:`METHODS` on the same stage results (no completion, mirror
+    and network completion; the visual hull from the AR poses beside them); the ground truth
+    is read only to score it."""
 
     from volec.estimate import estimate_from_stages, food_silhouettes, load_completion_model
     from volec.meshing import with_normals
@@ -603,11 +604,12 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
                                None),
                     "completion": (replace(cfg, use_completion=True,
                                            completion_method="network"), model)}
-        support = None
+        support = None  # the first variant's plane (all find the same one) cuts the hull
         for tag, (variant, net) in variants.items():
             est = estimate_from_stages(capture, stages, net, variant, silhouettes, scale)
             made = est.food
-            support = support or made.support
+            if support is None:
+                support = made.support
             write_bytes_atomic(work / f"mesh_{tag}.ply", made.mesh.mesh.export(file_type="ply"))
             if net is not None:
                 write_ply(with_normals(made.cloud), work / "food_completed.ply")
@@ -1021,6 +1023,16 @@ def attribution_table(raw: pd.DataFrame) -> pd.DataFrame:
     return pd.concat([table, means], ignore_index=True)
 
 
+def _ape(raw: pd.DataFrame, tag: str) -> pd.Series:
+    """Absolute percentage error of the ``TAG_ml`` volumes against ``gt_ml``."""
+    return 100 * (raw[f"{tag}_ml"] - raw["gt_ml"]).abs() / raw["gt_ml"]
+
+
+def _failed(raw: pd.DataFrame) -> pd.Series:
+    """Which rows are items whose pipeline failed (an ``error`` recorded instead of volumes)."""
+    return raw["error"].notna() if "error" in raw else pd.Series(False, index=raw.index)
+
+
 def volume_table(raw: pd.DataFrame, masks: pd.DataFrame | None = None) -> pd.DataFrame:
     """The paper's Table I: per item the true volume, the estimate without completion (the
     VolE-style baseline) and with it, their absolute percentage errors and accuracy
@@ -1031,9 +1043,9 @@ def volume_table(raw: pd.DataFrame, masks: pd.DataFrame | None = None) -> pd.Dat
     volumes and ``failed`` 1; the means are over the others, and the mean of ``failed`` is
     the share that failed."""
     table = pd.DataFrame({"item": raw["label"], "gt_ml": raw["gt_ml"]})
-    failed = raw["error"].notna() if "error" in raw else pd.Series(False, index=raw.index)
+    failed = _failed(raw)
     for tag, name in (("no_completion", "without"), ("completion", "with")):
-        ape = 100 * (raw[f"{tag}_ml"] - raw["gt_ml"]).abs() / raw["gt_ml"]
+        ape = _ape(raw, tag)
         table[f"{name}_ml"] = raw[f"{tag}_ml"]
         table[f"{name}_ape_pct"] = ape
         table[f"{name}_accuracy_pct"] = 100 - ape
@@ -1104,16 +1116,12 @@ METHODS = {
 DEFAULT_METHOD = "completion"
 
 
-def _ape(raw: pd.DataFrame, tag: str) -> pd.Series:
-    return 100 * (raw[f"{tag}_ml"] - raw["gt_ml"]).abs() / raw["gt_ml"]
-
-
 def method_table(raw: pd.DataFrame) -> pd.DataFrame:
     """The paper's Table II for one scenario: per item the true volume and, per method of
     :data:`METHODS`, the volume, its absolute percentage error and the mesh's Chamfer-L1
     distance to the true surface (mm); then the mean and the standard deviation over the items
     (items whose pipeline failed are left out of both)."""
-    ok = raw[raw["error"].isna()] if "error" in raw else raw
+    ok = raw[~_failed(raw)]
     table = pd.DataFrame({"item": ok["label"], "gt_ml": ok["gt_ml"]})
     for tag in METHODS:
         table[f"{tag}_ml"] = ok[f"{tag}_ml"]
@@ -1133,7 +1141,7 @@ def paired_tests(raw: pd.DataFrame, baseline: str = "no_completion",
     failed are left out."""
     from scipy.stats import ttest_rel
 
-    ok = raw[raw["error"].isna()] if "error" in raw else raw
+    ok = raw[~_failed(raw)]
     rows = []
     for measure, values in (("absolute volume error (%)", lambda t: _ape(ok, t)),
                             ("mesh Chamfer-L1 to the true surface (mm)",

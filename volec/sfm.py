@@ -526,8 +526,8 @@ def _map(capture: Capture, db: Path, sfm_dir: Path, cfg: SfmConfig) -> tuple[Any
     if cfg.mapping == "known_poses":
         log.info("SfM 3/4: triangulating from the AR poses, then bundle adjustment")
         trusted = ar_epipolar_error_deg(capture, db) <= cfg.max_ar_epipolar_error_deg
-        kept = 0
-        if trusted.sum() >= cfg.min_registered_fraction * len(capture):
+        kept = int(trusted.sum())
+        if kept >= cfg.min_registered_fraction * len(capture):
             rec = known_pose_mapping(capture, db, sfm_dir / "colmap", cfg, trusted)
             kept = rec.num_reg_images()
             if kept >= cfg.min_registered_fraction * len(capture):

@@ -133,7 +133,7 @@ def mirror_completion(partial: PointCloud, up: np.ndarray | None,
     (:mod:`volec.completion.mirror`, fitted on at most ``fit_points`` of it), the reflected
     points merged as the network's are; with ``up``, reflected points below the partial's
     lowest point are dropped."""
-    from volec.completion.mirror import fit_mirror_plane, reflect
+    from volec.completion.mirror import mirrored_points
 
     cfg = cfg or CompletionConfig()
     _check_partial(partial, cfg)
@@ -141,10 +141,6 @@ def mirror_completion(partial: PointCloud, up: np.ndarray | None,
     rng = np.random.default_rng(cfg.seed)
     sample = partial.xyz[rng.choice(len(partial), min(fit_points, len(partial)),
                                     replace=False)]
-    normal, offset = fit_mirror_plane(sample)
-    mirrored = reflect(partial.xyz, normal, offset)
-    if up is not None:
-        up = np.asarray(up, float) / np.linalg.norm(up)
-        mirrored = mirrored[mirrored @ up >= (partial.xyz @ up).min()]
+    mirrored = mirrored_points(partial.xyz, up=up, fit_xyz=sample)
     return merged_completion(partial, mirrored, fit_normalization(partial.xyz), cfg,
                              len(mirrored), start)

@@ -105,14 +105,24 @@ def fit_mirror_plane(xyz: np.ndarray, cfg: MirrorConfig | None = None
     return normal, float(o_norm * norm.scale + normal @ norm.centre)
 
 
+def mirrored_points(xyz: np.ndarray, cfg: MirrorConfig | None = None,
+                    up: np.ndarray | None = None, fit_xyz: np.ndarray | None = None
+                    ) -> np.ndarray:
+    """The reflection of ``xyz`` in the best mirror plane of ``fit_xyz`` (default: ``xyz``
+    itself; a subsample fits faster); with ``up``, the reflected points below the lowest
+    point of ``xyz`` along ``up`` are dropped."""
+    xyz = np.asarray(xyz, float)
+    normal, offset = fit_mirror_plane(xyz if fit_xyz is None else fit_xyz, cfg)
+    mirrored = reflect(xyz, normal, offset)
+    if up is not None:
+        up = np.asarray(up, float) / np.linalg.norm(up)
+        mirrored = mirrored[mirrored @ up >= (xyz @ up).min()]
+    return mirrored
+
+
 def mirror_complete(xyz: np.ndarray, cfg: MirrorConfig | None = None,
                     up: np.ndarray | None = None) -> np.ndarray:
     """The partial ``xyz`` plus its reflection in its best mirror plane; with ``up``, the
     reflected points below the lowest partial point along ``up`` are dropped."""
     xyz = np.asarray(xyz, float)
-    normal, offset = fit_mirror_plane(xyz, cfg)
-    mirrored = reflect(xyz, normal, offset)
-    if up is not None:
-        up = np.asarray(up, float) / np.linalg.norm(up)
-        mirrored = mirrored[mirrored @ up >= (xyz @ up).min()]
-    return np.concatenate([xyz, mirrored])
+    return np.concatenate([xyz, mirrored_points(xyz, cfg, up)])
