@@ -56,6 +56,26 @@ def test_the_item_on_the_table_is_found_and_a_second_object_left_out():
     assert np.all(geometry.height_m(geometry.plane_points) < 2e-3)
 
 
+def test_a_raised_plate_rim_near_the_item_is_not_part_of_it():
+    # a 6 cm ball off the centre of a plate whose rim (a ring 75-80 mm out, 5-25 mm high)
+    # comes within 2 cm of it: DBSCAN finds the rim as a cluster of its own (more than 8 mm
+    # away), near enough to merge at a 2 cm merge gap
+    rng = np.random.default_rng(3)
+    angle = rng.uniform(0, 2 * np.pi, 3000)
+    radius = rng.uniform(0.075, 0.08, 3000)
+    rim = np.c_[radius * np.cos(angle), radius * np.sin(angle), rng.uniform(0.005, 0.025, 3000)]
+    points = np.vstack([_scene_points(rng, [((0.03, 0.0, 0.03), 0.03)]), rim])
+    ball = points[len(points) - 3000 - 400:len(points) - 3000]
+    ball = ball[ball[:, 2] > 0.004]
+    assert 0.008 < np.min(np.linalg.norm(rim[:, None] - ball[None], axis=2)) < 0.02
+    geometry = find_item(_ring_cameras(target=(0.03, 0.0, 0.02)), points, UP,
+                         SegmentConfig(merge_gap_m=0.02))
+    off_ball = np.abs(np.linalg.norm(geometry.item_points - (0.03, 0.0, 0.03), axis=1) - 0.03)
+    assert np.all(off_ball < 1e-9)  # the ball's points only (a few at its foot lie on the
+    assert len(geometry.item_points) > 0.95 * len(ball)  # plane's inlier band)
+    assert geometry.other_clusters == 0  # a rim is not a second object either
+
+
 @pytest.mark.parametrize("objects, words", [
     ([], "nothing stands on the plate"),
     ([((0.15, 0.1, 0.03), 0.03)], "no object at the point the cameras look at"),

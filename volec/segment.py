@@ -78,9 +78,13 @@ class SegmentConfig:
     into several); a second object is farther. At 0.02 the chocolate croissant and the yellow
     cane chained into the raised plate rim (a 300 mm "item", masks with the plate in them,
     +260 % and +223 % in volume). At 0.01 the croissant is found at its own size (153 mm)
-    and the 16-frame cake of the tests still holds together; the yellow cane still chains
-    (it needs 0.005, which splits that cake): a rule that does not chain along the rim is
-    still to be found."""
+    and the 16-frame cake of the tests still holds together; the yellow cane is found at its
+    own size since rings round the item are never merged (``enclosing_span_deg``)."""
+    enclosing_span_deg: float = 270.0
+    """A cluster that goes round the item by more than this angle, farther out than the
+    item's own points (a plate's raised rim, a bowl's wall), is never merged into it: the
+    yellow cane's end came within 1 cm of the rim and the whole rim (a ring 97-160 mm from
+    it, 358 degrees round) joined it."""
     ambiguous_gap_m: float = 0.01
     """A second object at most this much farther from the fixation point than the nearest,
     and at least half its size, makes the choice ambiguous: an error."""
@@ -240,10 +244,13 @@ def _support_plane(points: np.ndarray, centres: np.ndarray, up: np.ndarray | Non
         "masks)")
 
 
-def _item_cluster(local: np.ndarray, height: np.ndarray, fixation: np.ndarray,
+def _item_cluster(local: np.ndarray, normal: np.ndarray, offset: float, fixation: np.ndarray,
                   distance: float, cfg: SegmentConfig) -> tuple[np.ndarray, int]:
     """(indices into ``local`` of the item's points, how many other objects stand there):
-    the cluster of points above the plane (``height``) nearest to the fixation point."""
+    the cluster of points above the plane (``normal``, ``offset``) nearest to the fixation
+    point, with the clusters near it (:func:`_merge_near`) except those that enclose it (the
+    raised rim of a plate, the wall of a bowl: :func:`_encloses`)."""
+    height = local @ normal + offset
     import open3d as o3d
 
     above = np.flatnonzero(height > cfg.min_height_m)
@@ -266,8 +273,10 @@ def _item_cluster(local: np.ndarray, height: np.ndarray, fixation: np.ndarray,
         raise SegmentationError(
             f"no object at the point the cameras look at (the nearest is {gaps[best] * 1000:.0f}"
             " mm away): aim the orbit at the food (or give masks)")
-    item, rest = _merge_near(local, clusters[best],
-                             [clusters[int(k)] for k in order[1:]], cfg.merge_gap_m)
+    others = [clusters[int(k)] for k in order[1:]]
+    others = [c for c in others if not _encloses(local[c], local[clusters[best]], normal,
+                                                 cfg.enclosing_span_deg)]
+    item, rest = _merge_near(local, clusters[best], others, cfg.merge_gap_m)
     if rest:
         second = min(rest, key=lambda c: float(np.linalg.norm(local[c] - fixation, axis=1)
                                                .min()))
@@ -278,6 +287,27 @@ def _item_cluster(local: np.ndarray, height: np.ndarray, fixation: np.ndarray,
                 f"{len(item)} and {len(second)} points, {gaps[best] * 1000:.0f} and "
                 f"{gap * 1000:.0f} mm from it): film one item at a time, or give masks")
     return item, len(rest)
+
+
+def _encloses(cluster: np.ndarray, item: np.ndarray, normal: np.ndarray, span_deg: float
+              ) -> bool:
+    """Whether the points ``cluster`` (K, 3) go round the centre of ``item`` (M, 3) by more
+    than ``span_deg`` degrees, seen along the plane's ``normal``, without covering it: a ring
+    such as a plate's raised rim. A fragment of the item itself (what :func:`_merge_near`
+    joins) lies to one side of it."""
+    centre = item.mean(axis=0)
+    rel = cluster - centre
+    flat = rel - np.outer(rel @ normal, normal)
+    radius = np.linalg.norm(flat, axis=1)
+    item_rel = item - centre
+    item_radius = np.linalg.norm(item_rel - np.outer(item_rel @ normal, normal), axis=1)
+    if np.median(radius) <= np.median(item_radius):
+        return False
+    e1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    angles = np.sort(np.degrees(np.arctan2(flat @ np.cross(normal, e1), flat @ e1)))
+    widest_gap = np.diff(np.concatenate([angles, [angles[0] + 360.0]])).max()
+    return bool(360.0 - widest_gap > span_deg)
 
 
 def _merge_near(points: np.ndarray, item: np.ndarray, others: list[np.ndarray],
@@ -350,10 +380,10 @@ def find_item(T_world_from_cam: np.ndarray, points: np.ndarray, up: np.ndarray |
         raise SegmentationError(f"only {len(local)} sparse points around the point the "
                                 "cameras look at: too little texture to find the food")
     normal, offset, _ = _support_plane(local, centres, up, cfg, 0)
-    item_idx, _ = _item_cluster(local, local @ normal + offset, fixation, distance, cfg)
+    item_idx, _ = _item_cluster(local, normal, offset, fixation, distance, cfg)
     normal, offset = _plane_under(local, item_idx, normal, offset, cfg)
+    item_idx, others = _item_cluster(local, normal, offset, fixation, distance, cfg)
     height = local @ normal + offset
-    item_idx, others = _item_cluster(local, height, fixation, distance, cfg)
     item = local[item_idx]
     extent = float(np.percentile(np.linalg.norm(item - item.mean(axis=0), axis=1), 95))
     on_plane = np.abs(height) < cfg.plane_inlier_m
