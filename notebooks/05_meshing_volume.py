@@ -80,7 +80,8 @@ save_figure(fig, figures_dir() / "volume_stages.png")
 # instead of SfM's, then stereo at the full image resolution, then the renderer's exact depth
 # maps instead of stereo (through the same fusion, masking, completion and meshing). Signed
 # distances to the true surface in mm (+ outside); what remains with exact depth is the share of
-# fusion, masking and meshing.
+# fusion, masking and meshing. The last two columns are the same without completion: the
+# network's points move the volume on their own, and can hide or add to the surface's offset.
 
 # %%
 chosen = items if quick else attribution_items

@@ -25,8 +25,16 @@
 #   round (about 50; one side is never seen);
 # - `sparse`: 30 evenly spaced frames.
 #
+# Two more are rendered on their own, on ten of the items:
+#
+# - `low`: 60 frames from 10-25 degrees of elevation (the top seen obliquely, more of the item
+#   hidden by itself);
+# - `smooth`: the full orbit with skins as faint as a peach's or a plum's, where dense stereo
+#   finds little to match; a surface that was seen but not reconstructed is unknown space too.
+#
 # Each runs the whole pipeline on its own frames only (SfM, dense, masking: cached per
-# scenario in `ITEM-full_orbit/work-SCENARIO/`), then every method on the same stage results:
+# scenario in `ITEM-full_orbit/work-SCENARIO/`, or in `ITEM-SCENARIO/work/` for the rendered
+# ones), then every method on the same stage results:
 #
 # - **visual hull (AR poses)**: the food masks' visual hull from the phone's own poses, cut at
 #   the support plane; no SfM, no depth;
@@ -43,6 +51,9 @@
 # Parameters (papermill overrides these)
 quick = False  # CI-sized run: one item, the 20-frame quick capture
 scenario_names = ["full_orbit", "half_orbit", "sparse"]
+rendered_names = ["low", "smooth"]  # rendered scenarios, on rendered_items only
+rendered_items = ["apple", "orange", "lemon", "pear", "banana", "chocolate_croissant",
+                  "empanadilla", "donut", "capsicum", "french_bread"]
 figure_items = ["apple", "pear", "banana"]
 figure_scenario = "half_orbit"
 workers = 2  # captures processed at once
@@ -52,6 +63,8 @@ import pandas as pd
 
 from volec.experiments import (
     completion_clouds,
+    dense_experiment,
+    dense_table,
     method_table,
     method_tests,
     scenarios,
@@ -63,9 +76,10 @@ from volec.tables import write_table
 from volec.viz import cloud_grid, save_figure
 
 root = experiment_dir(quick)
-chosen = ["quick"] if quick else scenario_names
+chosen = ["quick"] if quick else scenario_names + rendered_names
 items = ["apple"] if quick else item_names()
-raws = {name: volume_experiment(root, items, scenarios(quick)[name], workers=workers)
+raws = {name: volume_experiment(root, rendered_items if name in rendered_names else items,
+                                scenarios(quick)[name], workers=workers)
         for name in chosen}
 
 # %% [markdown]
@@ -95,6 +109,22 @@ pd.concat({name: table.tail(2).set_index("item") for name, table in tables.items
 table3 = method_tests(raws)
 write_table(table3, figures_dir() / "table3_methods", float_digits=4)
 table3
+
+# %% [markdown]
+# ## Faint skins: how much of the seen surface dense stereo covers
+#
+# Per item, the share of the true surface that at least two cameras see which has a masked
+# dense point within 2 mm (`completeness_visible_pct`), on the full orbit and on the same
+# orbit with faint skins (`smooth`), and the masked cloud's median signed distance (mm).
+
+# %%
+coverage_names = ["quick"] if quick else ["full_orbit", "smooth"]
+coverage_items = items if quick else rendered_items
+coverage = pd.concat([dense_experiment(root, coverage_items, scenarios(quick)[name])
+                      for name in coverage_names])
+coverage = dense_table(coverage)
+write_table(coverage, figures_dir() / "dense_coverage_smooth", float_digits=2)
+coverage
 
 # %% [markdown]
 # ## Fig. 1: incomplete and completed clouds

@@ -121,8 +121,9 @@ def scenario_capture(out: Path, scenario: Scenario, exact: bool = False) -> Capt
 def scenarios(quick: bool) -> dict[str, Scenario]:
     """The capture conditions: full orbit at the default 5 mm drift, its frames within a
     half orbit, 30 of its frames evenly spread, 1 cm drift (all with a phone's look), the
-    full orbit with the first benchmark's sharp look, and the full orbit in a setup that makes
-    segmentation hard (one per item, see :data:`volec.synth.scene.HARD_SETUPS`).
+    full orbit with the first benchmark's sharp look, 60 frames from low elevations
+    (``low``), the full orbit with faint skins (``smooth``), and the full orbit in a setup
+    that makes segmentation hard (one per item, see :data:`volec.synth.scene.HARD_SETUPS`).
     ``quick`` gives small captures for CI (20 frames over 120 degrees)."""
     if quick:
         small = SYNTH_PRESETS["default"].with_(n_frames=20, arc_deg=120.0)
@@ -136,6 +137,8 @@ def scenarios(quick: bool) -> dict[str, Scenario]:
         "sparse": Scenario("sparse", full, frames="evenly:30", rendered_as="full_orbit"),
         "drift_1cm": Scenario("drift_1cm", SYNTH_PRESETS["drift_1cm"]),
         "full_orbit_sharp": Scenario("full_orbit_sharp", SYNTH_PRESETS["sharp"]),
+        "low": Scenario("low", SYNTH_PRESETS["low"]),
+        "smooth": Scenario("smooth", SYNTH_PRESETS["smooth"]),
         "hard": Scenario("hard", SYNTH_PRESETS["default"].with_(setup="hard")),
     }
 
@@ -350,15 +353,15 @@ DENSE_COLUMNS = {
 
 def dense_table(raw: pd.DataFrame) -> pd.DataFrame:
     """The rows of :func:`dense_experiment` in display units (``_mm`` and ``_pct`` columns),
-    followed by a mean row per pose source."""
-    shown = raw[["item", "poses", "frames", *DENSE_COLUMNS]].copy()
+    followed by a mean row per scenario and pose source."""
+    shown = raw[["item", "scenario", "poses", "frames", *DENSE_COLUMNS]].copy()
     for col, factor in DENSE_COLUMNS.items():
         shown[col] = shown[col] * factor
     renamed = {c: c[:-2] + "_mm" for c in DENSE_COLUMNS if c.endswith("_m")}
     renamed |= {c: c + "_pct" for c, f in DENSE_COLUMNS.items() if f == 100.0}
     shown = shown.rename(columns=renamed)
-    numeric = shown.columns.drop(["item", "poses"])
-    means = shown.groupby("poses", sort=False)[numeric].mean().reset_index()
+    numeric = shown.columns.drop(["item", "scenario", "poses"])
+    means = shown.groupby(["scenario", "poses"], sort=False)[numeric].mean().reset_index()
     means.insert(0, "item", "mean")
     return pd.concat([shown, means], ignore_index=True)
 
@@ -964,13 +967,21 @@ def attribution_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConf
                 masked = mask_cloud(dense.cloud, capture, masks, sfm.T_world_from_cam,
                                     sfm.registered, cfg.masking)
                 these = replace(exact_stages, dense=dense, masked=masked)
-            est = estimate_from_stages(capture, these, model, cfg,
-                                       food_silhouettes(capture, these, cfg))
+            silhouettes = food_silhouettes(capture, these, cfg)
+            est = estimate_from_stages(capture, these, model, cfg, silhouettes)
+            # the same without completion: the network's points are not part of the surface
+            # offset that stereo, fusion and meshing make, and can hide or add to it
+            bare = estimate_from_stages(capture, these, None,
+                                        replace(cfg, use_completion=False), silhouettes)
             signed = signed_distances_to_surface(these.masked.cloud.xyz, truth)
             row |= {f"{variant}_ml": est.food.volume_ml,
                     f"{variant}_error_pct": 100 * (est.food.volume_ml / row["gt_ml"] - 1),
+                    f"{variant}_no_completion_error_pct":
+                        100 * (bare.food.volume_ml / row["gt_ml"] - 1),
                     **signed_summary(signed, f"{variant}_cloud"),
-                    **mesh_offset_scores(est.food.mesh.mesh, truth, prefix=f"{variant}_mesh")}
+                    **mesh_offset_scores(est.food.mesh.mesh, truth, prefix=f"{variant}_mesh"),
+                    **mesh_offset_scores(bare.food.mesh.mesh, truth,
+                                         prefix=f"{variant}_no_completion_mesh")}
         return row
 
     return cached_row(out / "work" / ATTRIBUTION_CACHE, key, run)
@@ -982,7 +993,8 @@ def attribution_experiment(root: Path, items: list[str], scenario: Scenario,
     """Where the surface offset comes from: per item, the masked cloud's and the mesh's signed
     distances to the true surface and the volume error, for each of
     :data:`ATTRIBUTION_VARIANTS` (SfM poses; exact poses; exact poses at full resolution;
-    exact depth through the same fusion, masking and meshing). The stages of the pipeline
+    exact depth through the same fusion, masking and meshing), each with the default
+    completion and without completion (``*_no_completion_*``). The stages of the pipeline
     variant are reused from the volume experiment. Cached per item in
     ``attribution_eval.json``, keyed like :func:`volume_experiment`."""
     from volec.estimate import EstimateConfig, checkpoint_path
@@ -1002,7 +1014,7 @@ def attribution_experiment(root: Path, items: list[str], scenario: Scenario,
 def attribution_table(raw: pd.DataFrame) -> pd.DataFrame:
     """One row per (item, variant): the cloud's and the mesh's median signed distance (mm),
     the mesh's p10-p90 band, the volume its offset implies and the volume error (percent);
-    then the mean per variant."""
+    without completion, the mesh's p90 and the volume error; then the mean per variant."""
     rows = []
     for _, r in raw.iterrows():
         for variant, what in ATTRIBUTION_VARIANTS.items():
@@ -1015,7 +1027,10 @@ def attribution_table(raw: pd.DataFrame) -> pd.DataFrame:
                 "aligned_mesh_signed_median_mm": 1000 * r[
                     f"{variant}_mesh_aligned_signed_median_m"],
                 "mesh_offset_implies_pct": r[f"{variant}_mesh_offset_pct"],
-                "volume_error_pct": r[f"{variant}_error_pct"]})
+                "volume_error_pct": r[f"{variant}_error_pct"],
+                "no_completion_mesh_signed_p90_mm": 1000 * r[
+                    f"{variant}_no_completion_mesh_signed_p90_m"],
+                "no_completion_volume_error_pct": r[f"{variant}_no_completion_error_pct"]})
     table = pd.DataFrame(rows)
     numeric = table.columns.drop(["item", "variant", "what"])
     means = table.groupby(["variant", "what"], sort=False)[numeric].mean().reset_index()
