@@ -64,9 +64,17 @@ class MaskingConfig:
     views that see it (1.0: the paper's intersection of mask hits)."""
     min_views: int = 3
     """Points inside fewer views' images than this are dropped (too little evidence)."""
-    mask_dilation_px: int = 1
-    """Masks are grown by this many pixels before the test, absorbing sub-pixel pose error at
-    the silhouette."""
+    mask_dilation_px: int = 3
+    """Masks are grown by this many pixels (of the capture's images) before the test. Dense
+    stereo's points scatter about the surface by about half a millimetre; near a silhouette's
+    rim the test drops those that scatter outwards and keeps those that scatter inwards, so a
+    tight test shrinks the food cloud. Scene points that are not food (the plate at the
+    item's foot) stay farther out than this. With exact poses on the benchmark pear (480x640
+    frames), the fused cloud near the food lies at a median of -0.002 mm from the true
+    surface (p10-p90 -0.74 to +0.73 mm) and the food cloud, grown by 1, 2, 3, 5 pixels, at
+    -0.119, -0.027, -0.008, -0.002 mm (p90 +0.39, +0.63, +0.70, +0.72), with 0, 0, 4 and 67
+    of its 78000 points more than 2 mm outside (none beyond 5 mm). A capture with larger
+    frames needs proportionally more."""
     max_outside_views: int = 1
     """A point outside the food mask in at most this many of the views that see it is still
     food, whatever ``min_inside_fraction`` says: one frame's bad mask (a missed chunk) cannot
