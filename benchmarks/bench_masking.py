@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 
-import numpy as np
 import pandas as pd
 
 from volec.estimate import (
@@ -27,7 +26,7 @@ from volec.estimate import (
 )
 from volec.experiments import ensure_capture, scenario_capture, scenarios
 from volec.masking import mask_cloud
-from volec.metrics import signed_distances_to_surface
+from volec.metrics import signed_distances_to_surface, signed_summary
 from volec.paths import experiment_dir, figures_dir
 from volec.pipeline import run_stages
 from volec.scale import require_metric
@@ -57,10 +56,9 @@ def item_rows(item: str, scenario_name: str, dilations: list[int]) -> list[dict]
         bare = estimate_from_stages(capture, these, None, replace(cfg, use_completion=False),
                                     silhouettes, scale)
         full = estimate_from_stages(capture, these, model, cfg, silhouettes, scale)
-        signed = signed_distances_to_surface(masked.cloud.xyz, truth)
+        offset = signed_summary(signed_distances_to_surface(masked.cloud.xyz, truth), "cloud")
         rows.append({"item": item, "dilation_px": dilation, "food_points": len(masked.cloud),
-                     "cloud_signed_median_mm": 1000 * float(np.median(signed)),
-                     "cloud_signed_p90_mm": 1000 * float(np.percentile(signed, 90)),
+                     **{k[:-2] + "_mm": 1000 * v for k, v in offset.items()},
                      "no_completion_error_pct": 100 * (bare.food.volume_ml / true_ml - 1),
                      "completion_error_pct": 100 * (full.food.volume_ml / true_ml - 1),
                      "trusted": full.trusted})

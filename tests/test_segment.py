@@ -64,9 +64,9 @@ def test_a_raised_plate_rim_near_the_item_is_not_part_of_it():
     angle = rng.uniform(0, 2 * np.pi, 3000)
     radius = rng.uniform(0.075, 0.08, 3000)
     rim = np.c_[radius * np.cos(angle), radius * np.sin(angle), rng.uniform(0.005, 0.025, 3000)]
-    points = np.vstack([_scene_points(rng, [((0.03, 0.0, 0.03), 0.03)]), rim])
-    ball = points[len(points) - 3000 - 400:len(points) - 3000]
-    ball = ball[ball[:, 2] > 0.004]
+    table_and_ball = _scene_points(rng, [((0.03, 0.0, 0.03), 0.03)])
+    ball = table_and_ball[table_and_ball[:, 2] > 0]  # the table lies at z = 0
+    points = np.vstack([table_and_ball, rim])
     assert 0.008 < np.min(np.linalg.norm(rim[:, None] - ball[None], axis=2)) < 0.02
     geometry = find_item(_ring_cameras(target=(0.03, 0.0, 0.02)), points, UP,
                          SegmentConfig(merge_gap_m=0.02))

@@ -48,7 +48,7 @@ from volec.completion.model import SymmCompletion
 from volec.dense import PRESETS as DENSE_PRESETS
 from volec.dense import DenseConfig
 from volec.errors import VolecError
-from volec.geometry import horizontal_axes
+from volec.geometry import azimuth_span_deg
 from volec.io import folder_lock, write_bytes_atomic, write_json_atomic, write_text_atomic
 from volec.keyframes import KeyframeConfig, choose_keyframes, keyframe_capture
 from volec.masking import MaskingConfig, check_masks, usable_masks
@@ -283,13 +283,7 @@ def food_silhouettes(capture: Capture, stages: StageResults, cfg: EstimateConfig
 def orbit_coverage_deg(camera_centres: np.ndarray, target: np.ndarray, up: np.ndarray) -> float:
     """How many degrees of azimuth around ``target`` (about the axis ``up``) the cameras span:
     360 minus the widest gap between neighbouring camera azimuths."""
-    side, other = horizontal_axes(up)
-    rel = np.asarray(camera_centres, float) - target
-    azimuth = np.sort(np.degrees(np.arctan2(rel @ other, rel @ side)) % 360.0)
-    if len(azimuth) < 2:
-        return 0.0
-    gaps = np.diff(np.concatenate([azimuth, azimuth[:1] + 360.0]))
-    return float(360.0 - gaps.max())
+    return azimuth_span_deg(camera_centres, target, up)
 
 
 def capture_up(capture: Capture) -> np.ndarray | None:

@@ -92,3 +92,16 @@ def horizontal_axes(up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     side = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
     side /= np.linalg.norm(side)
     return side, np.cross(up, side)
+
+
+def azimuth_span_deg(points: np.ndarray, centre: np.ndarray, up: np.ndarray) -> float:
+    """How many degrees of azimuth around ``centre`` (about the axis ``up``) the ``points``
+    (N, 3) span: 360 minus the widest gap between neighbouring azimuths (0 for fewer than
+    two points)."""
+    side, other = horizontal_axes(up)
+    rel = np.asarray(points, float) - centre
+    azimuth = np.sort(np.degrees(np.arctan2(rel @ other, rel @ side)) % 360.0)
+    if len(azimuth) < 2:
+        return 0.0
+    gaps = np.diff(np.concatenate([azimuth, azimuth[:1] + 360.0]))
+    return float(360.0 - gaps.max())

@@ -40,6 +40,7 @@ from scipy import ndimage
 
 from volec.capture import Capture, Intrinsics, read_mask
 from volec.errors import VolecError
+from volec.geometry import azimuth_span_deg
 from volec.progress import progress_over
 from volec.scale import fixation_of_poses
 
@@ -250,8 +251,9 @@ def _item_cluster(local: np.ndarray, normal: np.ndarray, offset: float, fixation
     the cluster of points above the plane (``normal``, ``offset``) nearest to the fixation
     point, with the clusters near it (:func:`_merge_near`) except those that enclose it (the
     raised rim of a plate, the wall of a bowl: :func:`_encloses`)."""
-    height = local @ normal + offset
     import open3d as o3d
+
+    height = local @ normal + offset
 
     above = np.flatnonzero(height > cfg.min_height_m)
     if len(above) < cfg.min_cluster_points:
@@ -292,22 +294,13 @@ def _item_cluster(local: np.ndarray, normal: np.ndarray, offset: float, fixation
 def _encloses(cluster: np.ndarray, item: np.ndarray, normal: np.ndarray, span_deg: float
               ) -> bool:
     """Whether the points ``cluster`` (K, 3) go round the centre of ``item`` (M, 3) by more
-    than ``span_deg`` degrees, seen along the plane's ``normal``, without covering it: a ring
-    such as a plate's raised rim. A fragment of the item itself (what :func:`_merge_near`
-    joins) lies to one side of it."""
-    centre = item.mean(axis=0)
-    rel = cluster - centre
-    flat = rel - np.outer(rel @ normal, normal)
-    radius = np.linalg.norm(flat, axis=1)
-    item_rel = item - centre
-    item_radius = np.linalg.norm(item_rel - np.outer(item_rel @ normal, normal), axis=1)
-    if np.median(radius) <= np.median(item_radius):
+    than ``span_deg`` degrees, seen along the plane's ``normal``, farther out than the item's
+    own points: a ring such as a plate's raised rim. A fragment of the item itself (what
+    :func:`_merge_near` joins) lies to one side of it."""
+    if (np.median(_footprint_distance(cluster, item, normal))
+            <= np.median(_footprint_distance(item, item, normal))):
         return False
-    e1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    angles = np.sort(np.degrees(np.arctan2(flat @ np.cross(normal, e1), flat @ e1)))
-    widest_gap = np.diff(np.concatenate([angles, [angles[0] + 360.0]])).max()
-    return bool(360.0 - widest_gap > span_deg)
+    return azimuth_span_deg(cluster, item.mean(axis=0), normal) > span_deg
 
 
 def _merge_near(points: np.ndarray, item: np.ndarray, others: list[np.ndarray],
