@@ -35,6 +35,7 @@ from volec.experiments import (
     scenarios,
     segmentation_experiment,
     signed_surfaces,
+    surface_bands,
     surface_offset_table,
     volume_experiment,
     volume_table,
@@ -95,6 +96,21 @@ surfaces = signed_surfaces(root, shown_offsets, scenario)
 up = load_truth(root / f"{shown_offsets[0]}-{scenario.name}")["world_up"]
 fig = signed_distance_figure(surfaces, up)
 save_figure(fig, figures_dir() / "surface_signed_distance.png")
+
+# %% [markdown]
+# ## Where on the item the offset lies, by height
+#
+# Each item's height above its lowest point cut into bands (fractions of its true height): the
+# share of the true surface in each band, how much of it the masked cloud covers (within 1.5 mm),
+# and the final mesh's median signed distance (mm) and the volume its offset there implies (% of
+# the true volume; the bands add up to the mesh's whole offset). On an orbit the lower bands are
+# seen only obliquely, stereo drops what it sees at grazing angles, and there the mesh is what
+# the visual hull and the shape prior make of the gap. The last rows are the means over the items.
+
+# %%
+bands = surface_bands(root, items, scenario)
+write_table(bands, figures_dir() / "surface_bands", float_digits=3)
+bands[bands["item"] == "mean"]
 
 # %% [markdown]
 # ## Runtime per stage

@@ -14,6 +14,7 @@ from volec.metrics import (
     chamfer_distance,
     cloud_scores,
     distances_to_surface,
+    height_band_offsets,
     mesh_offset_scores,
     sample_surface,
     signed_distances_to_surface,
@@ -102,3 +103,27 @@ def test_a_misplaced_mesh_is_aligned_before_its_shape_offset_is_measured():
     assert scores["mesh_misplacement_m"] == pytest.approx(np.hypot(0.0015, 0.001), abs=1e-4)
     assert scores["mesh_aligned_signed_median_m"] == pytest.approx(0.0003, abs=2e-5)
     assert scores["mesh_aligned_signed_p90_m"] - scores["mesh_aligned_signed_p10_m"] < 1e-4
+
+
+def test_height_bands_find_an_offset_of_the_lower_half_and_where_the_cloud_is():
+    radius, grown_by = 0.04, 0.0005
+    truth = trimesh.creation.icosphere(subdivisions=6, radius=radius)
+    mesh = trimesh.creation.icosphere(subdivisions=5, radius=radius)
+    lower = mesh.vertices[:, 2] < 0
+    mesh.vertices[lower] *= (radius + grown_by) / radius  # the lower half 0.5 mm outside
+    top = sample_surface(truth, 20000, seed=1)
+    cloud = top[top[:, 2] > 0.01]  # stereo saw only the upper part
+    rows = height_band_offsets(mesh, truth, cloud, np.array([0.0, 0.0, 1.0]),
+                               edges=(0.0, 0.25, 0.5, 0.75, 1.0))
+    median_mm = [1000 * r["mesh_signed_median_m"] for r in rows]
+    assert median_mm[0] == pytest.approx(0.5, abs=0.02)
+    assert median_mm[1] == pytest.approx(0.5, abs=0.02)
+    assert median_mm[2] == pytest.approx(0.0, abs=0.02)
+    assert median_mm[3] == pytest.approx(0.0, abs=0.02)
+    # a sphere's area is spread evenly over its height: a quarter in each band
+    assert [r["true_area_share"] for r in rows] == pytest.approx([0.25] * 4, abs=0.02)
+    assert [r["cloud_coverage"] for r in rows] == pytest.approx([0, 0, 0.5, 1], abs=0.06)
+    exact_pct = 100 * (mesh.volume - truth.volume) / truth.volume
+    assert sum(r["mesh_offset_pct"] for r in rows) == pytest.approx(exact_pct, rel=0.05)
+    assert rows[2]["mesh_offset_pct"] + rows[3]["mesh_offset_pct"] == pytest.approx(
+        0.0, abs=0.05 * exact_pct)

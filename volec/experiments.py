@@ -1121,6 +1121,34 @@ def signed_surfaces(root: Path, items: list[str], scenario: Scenario, tag: str =
     return out
 
 
+
+def surface_bands(root: Path, items: list[str], scenario: Scenario, tag: str = "completion"
+                  ) -> pd.DataFrame:
+    """Per item of :func:`volume_experiment` and band of height above its lowest point
+    (:func:`volec.metrics.height_band_offsets`): how much of the true surface the masked cloud
+    covers there, and how far the final mesh (variant ``tag``) lies outside (+, mm) and what
+    volume that implies (% of the truth); then each band's mean over the items."""
+    import trimesh
+
+    from volec.metrics import height_band_offsets
+    from volec.pointcloud import read_ply
+    from volec.synth import load_truth
+
+    rows = []
+    for item in items:
+        folder = ensure_capture(root, item, scenario)
+        work = scenario.work(folder)
+        bands = height_band_offsets(trimesh.load(work / f"mesh_{tag}.ply"),
+                                    load_ground_truth_mesh(folder),
+                                    read_ply(work / "food_masked.ply").xyz,
+                                    np.asarray(load_truth(folder)["world_up"], float))
+        rows += [{"item": item, **band} for band in bands]
+    table = pd.DataFrame(rows)
+    table["mesh_signed_median_mm"] = 1000 * table.pop("mesh_signed_median_m")
+    means = table.drop(columns="item").groupby(["band_low", "band_high"]).mean().reset_index()
+    means.insert(0, "item", "mean")
+    return pd.concat([table, means], ignore_index=True)
+
 #: Table II's methods, as ``volume_row`` tags them, and how the table names them.
 METHODS = {
     "visual_hull": "visual hull (AR poses)",
