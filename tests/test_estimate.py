@@ -11,7 +11,6 @@ import trimesh
 
 from tests.files import snapshot
 from volec.cli import main
-from volec.estimate import orbit_coverage_deg
 from volec.pointcloud import read_ply
 from volec.synth import load_ground_truth_mesh
 from volec.volume import volume_ml
@@ -106,15 +105,6 @@ def test_volec_estimate_with_mirror_completion(small_capture, small_result, tmp_
     assert len(completed) == len(masked) + result["completion"]["predicted_kept"] > len(masked)
     assert volume_ml(trimesh.load(out / "mesh.ply")) == pytest.approx(result["volume_ml"],
                                                                       rel=1e-6)
-
-
-def test_orbit_coverage_of_cameras_on_arcs():
-    angles = np.radians(np.arange(0, 100, 5.0))
-    arc = np.c_[np.cos(angles), np.sin(angles), np.full_like(angles, 0.5)]
-    assert orbit_coverage_deg(arc, np.zeros(3), np.array([0.0, 0.0, 1.0])) == pytest.approx(95)
-    full = np.radians(np.arange(0, 360, 10.0))
-    ring = np.c_[np.cos(full), np.sin(full), np.zeros_like(full)]
-    assert orbit_coverage_deg(ring, np.zeros(3), np.array([0.0, 0.0, 1.0])) == pytest.approx(350)
 
 
 def test_volec_estimate_refuses_bad_input(small_capture, tmp_path, capsys):

@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from volec.geometry import (
+    azimuth_span_deg,
     invert_rigid,
     look_at_opencv,
     opencv_c2w_to_opengl,
@@ -65,3 +66,12 @@ def test_rigid_problem_names_the_defect(matrix, words):
 def test_rotation_angle():
     R = rotvec_to_matrix(np.array([0.0, 0.0, np.radians(30)]))
     assert rotation_angle_deg(np.eye(3), R) == pytest.approx(30.0)
+
+
+def test_azimuth_span_of_cameras_on_arcs():
+    angles = np.radians(np.arange(0, 100, 5.0))
+    arc = np.c_[np.cos(angles), np.sin(angles), np.full_like(angles, 0.5)]
+    assert azimuth_span_deg(arc, np.zeros(3), np.array([0.0, 0.0, 1.0])) == pytest.approx(95)
+    full = np.radians(np.arange(0, 360, 10.0))
+    ring = np.c_[np.cos(full), np.sin(full), np.zeros_like(full)]
+    assert azimuth_span_deg(ring, np.zeros(3), np.array([0.0, 0.0, 1.0])) == pytest.approx(350)

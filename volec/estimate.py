@@ -280,12 +280,6 @@ def food_silhouettes(capture: Capture, stages: StageResults, cfg: EstimateConfig
                             cfg.meshing.silhouette_max_views)
 
 
-def orbit_coverage_deg(camera_centres: np.ndarray, target: np.ndarray, up: np.ndarray) -> float:
-    """How many degrees of azimuth around ``target`` (about the axis ``up``) the cameras span:
-    360 minus the widest gap between neighbouring camera azimuths."""
-    return azimuth_span_deg(camera_centres, target, up)
-
-
 def capture_up(capture: Capture) -> np.ndarray | None:
     """The capture's up direction where it states one (``world_up`` in transforms.json)."""
     up = capture.metadata.get("world_up")
@@ -333,7 +327,7 @@ def estimate_from_stages(capture: Capture, stages: StageResults, model: SymmComp
                else up if up is not None else np.array([0.0, 0.0, 1.0]))
     sfm = stages.sfm
     centres = sfm.T_world_from_cam[sfm.registered][:, :3, 3]
-    coverage = orbit_coverage_deg(centres, food.mesh.mesh.centroid, view_up)
+    coverage = azimuth_span_deg(centres, food.mesh.mesh.centroid, view_up)
     start = time.perf_counter()
     bounds = estimate_bounds(food, stages, silhouettes, cfg.space)
     bounds_s = round(time.perf_counter() - start, 2)

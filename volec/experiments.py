@@ -1121,7 +1121,6 @@ def signed_surfaces(root: Path, items: list[str], scenario: Scenario, tag: str =
     return out
 
 
-
 def surface_bands(root: Path, items: list[str], scenario: Scenario, tag: str = "completion"
                   ) -> pd.DataFrame:
     """Per item of :func:`volume_experiment` and band of height above its lowest point
@@ -1148,6 +1147,7 @@ def surface_bands(root: Path, items: list[str], scenario: Scenario, tag: str = "
     means = table.drop(columns="item").groupby(["band_low", "band_high"]).mean().reset_index()
     means.insert(0, "item", "mean")
     return pd.concat([table, means], ignore_index=True)
+
 
 #: Table II's methods, as ``volume_row`` tags them, and how the table names them.
 METHODS = {
