@@ -10,10 +10,12 @@ from volec.capture import read_transforms_json
 from volec.geometry import look_at_opencv
 from volec.metrics import sample_surface
 from volec.segment import (
+    SceneGeometry,
     SegmentationError,
     SegmentConfig,
     check_in_view,
     find_item,
+    hull_voxel_m,
     load_masks,
     save_masks,
     segment,
@@ -139,3 +141,14 @@ def test_masks_match_the_exact_ones_on_a_synthetic_capture(quick_capture, tmp_pa
     assert back.names == masks.names and all(
         np.array_equal(a, b) for a, b in zip(back.masks, masks.masks, strict=True))
     assert (tmp_path / "masks" / "frame_00000.png").exists()
+
+
+def test_hull_voxel_grows_only_for_items_too_large_for_the_grid():
+    def geometry(side_m: float) -> SceneGeometry:
+        corners = np.array([[0.0, 0.0, 0.0], [side_m, side_m / 2, side_m / 3]])
+        return SceneGeometry(np.zeros(3), UP, 0.0, corners, np.zeros((0, 3)), 0)
+
+    cfg = SegmentConfig(voxel_m=0.001, hull_margin_m=0.02, hull_max_voxels_across=240)
+    assert hull_voxel_m(geometry(0.1), cfg) == 0.001  # 140 voxels across: as configured
+    # 0.5 m and two 2 cm margins across 240 voxels
+    assert hull_voxel_m(geometry(0.5), cfg) == pytest.approx(0.54 / 240)

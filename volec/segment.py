@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -115,7 +115,13 @@ class SegmentConfig:
     probable_margin_px: int = 25
     """How far beyond the item's projected points GrabCut may grow the food, work pixels."""
     voxel_m: float = 0.001
-    """Edge of the visual hull's voxels, metres."""
+    """Edge of the visual hull's voxels, metres (grown for large items, see
+    ``hull_max_voxels_across``)."""
+    hull_max_voxels_across: int = 240
+    """The hull's voxels grow beyond ``voxel_m`` for an item whose grid would span more than
+    this many along its longest side: the hull's cost grows with the cube of that count (a
+    30 cm item at 1 mm took 5 minutes, on the instant-ngp fox's real photos). Every
+    benchmark item (at most 186 mm, 226 with the margins) keeps 1 mm."""
     hull_max_outside_views: int = 1
     """A voxel is food when at most this many of the hull views put it outside their mask:
     one view's mistake is outvoted, but two views that see empty space are believed (with a
@@ -628,6 +634,14 @@ def _hull_grid(geometry: SceneGeometry, cfg: SegmentConfig, voxel_m: float) -> n
     return grid[geometry.height_m(grid) > -0.5 * voxel_m]
 
 
+def hull_voxel_m(geometry: SceneGeometry, cfg: SegmentConfig) -> float:
+    """The hull's voxel edge for this item, metres: ``cfg.voxel_m``, or more where the item's
+    grid (its sparse points and the margins) would span more than
+    ``cfg.hull_max_voxels_across`` voxels."""
+    span_m = float(np.ptp(geometry.item_points, axis=0).max()) + 2 * cfg.hull_margin_m
+    return max(cfg.voxel_m, span_m / cfg.hull_max_voxels_across)
+
+
 def _carve(grid: np.ndarray, views: list[_View], masks: list[np.ndarray],
            max_outside: int) -> np.ndarray:
     """The points of ``grid`` that at most ``max_outside`` views see outside their mask and
@@ -806,6 +820,8 @@ def segment(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarr
     up = capture.metadata.get("world_up")
     geometry = find_item(T_world_from_cam[registered], sparse_xyz,
                          None if up is None else np.asarray(up, float), cfg)
+    voxel_m = hull_voxel_m(geometry, cfg)
+    run_cfg = replace(cfg, voxel_m=voxel_m)
     chosen = hull_views(registered, cfg.hull_views)
     views = [_work_view(capture, int(i), T_world_from_cam[i], cfg) for i in chosen]
     coarse = []
@@ -819,17 +835,17 @@ def segment(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarr
         heights = stereo_heights(view, others, roi, geometry, cfg)
         coarse.append(grabcut(view.rgb, seed_labels(view, geometry, cfg, consistency, heights),
                               cfg.grabcut_iterations))
-    voxels = visual_hull(views, coarse, geometry, cfg)
+    voxels = visual_hull(views, coarse, geometry, run_cfg)
     if len(voxels) == 0:
         raise SegmentationError("the views do not agree on any food: the colours of food and "
                                 "plate may be too close (give masks)")
-    surface = hull_surface(voxels, cfg.voxel_m)
+    surface = hull_surface(voxels, voxel_m)
     t_hull = time.perf_counter() - start
     masks, confidence, failed = [], [], {}
     for i, frame in enumerate(progress_over(capture.frames, "segment: masks", progress,
                                             "frames")):
         sil = hull_silhouette(surface, frame.intrinsics, np.linalg.inv(T_world_from_cam[i]),
-                              cfg.voxel_m)
+                              voxel_m)
         with Image.open(frame.image_path) as im:
             rgb = np.asarray(im.convert("RGB"))
         mask = refine_in_band(rgb, sil, cfg) if sil.any() else sil
@@ -847,6 +863,7 @@ def segment(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarr
         "method": "geometry seeds + GrabCut + visual hull (weights-free)",
         "hull_views": [capture.frames[i].name for i in chosen],
         "hull_voxels": len(voxels),
+        "hull_voxel_m": voxel_m,
         "item_points": len(geometry.item_points),
         "plane_points": len(geometry.plane_points),
         "other_objects_left_out": geometry.other_clusters,
