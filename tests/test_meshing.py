@@ -14,7 +14,9 @@ from volec.meshing import (
     MeshingError,
     SupportPlane,
     closed_surface,
+    consistent_views,
     fit_support_plane,
+    mask_contradiction,
     mesh_cloud,
     oriented_normals,
     signed_distance_grid,
@@ -256,3 +258,36 @@ def test_silhouettes_carve_the_unseen_gap_under_a_sphere_on_a_table():
     assert plain > 1.03 * truth  # the filled gap: a few per cent too much
     assert abs(volume_ml(carved.mesh) - truth) < 0.4 * (plain - truth)
     assert 0 < carved.report["carved_fraction"] < 0.25
+
+
+def test_masks_that_leave_out_part_of_the_food_do_not_carve():
+    # 24 exact silhouettes of a sphere on a table; then one mask misses the half of the food
+    # left of its centre, one is empty and one is eroded by 2 px (a segmenter's boundary
+    # error, under the 4 px tolerance): the first two contradict the food cloud and are left
+    # out, the eroded one is kept.
+    from scipy import ndimage
+
+    r = 0.03
+    centre = np.array([0.0, 0.0, r])
+    d = np.random.default_rng(5).normal(size=(20000, 3))
+    food = centre + r * d / np.linalg.norm(d, axis=1, keepdims=True)
+    intr = Intrinsics(width=320, height=240, fx=300.0, fy=300.0, cx=160.0, cy=120.0)
+    masks, poses = [], []
+    for k in range(24):
+        azimuth, elevation = 2 * np.pi * k / 24, np.radians(30.0)
+        eye = centre + 0.3 * np.array([np.cos(elevation) * np.cos(azimuth),
+                                       np.cos(elevation) * np.sin(azimuth), np.sin(elevation)])
+        poses.append(look_at_opencv(eye, centre, np.array([0.0, 0.0, 1.0])))
+        masks.append(_sphere_silhouette(intr, poses[-1], centre, r))
+    masks[3] = masks[3] & (np.arange(intr.width) >= intr.cx)[None, :]
+    masks[7] = np.zeros_like(masks[7])
+    masks[11] = ndimage.binary_erosion(masks[11], iterations=2)
+    views = [silhouette_view(m, intr, T, f"frame_{k}")
+             for k, (m, T) in enumerate(zip(masks, poses, strict=True))]
+    cfg = MeshingConfig()
+    assert mask_contradiction(views[0], food, cfg.silhouette_contradiction_px) < 0.001
+    assert mask_contradiction(views[3], food, 4.0) == pytest.approx(0.5, abs=0.1)
+    assert mask_contradiction(views[7], food, 4.0) == 1.0
+    kept, left_out = consistent_views(views, food, cfg)
+    assert [v.name for v in left_out] == ["frame_3", "frame_7"]
+    assert len(kept) == 22 and "frame_11" in [v.name for v in kept]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from PIL import Image
@@ -55,7 +57,33 @@ def test_the_item_on_the_table_is_found_and_a_second_object_left_out():
     assert abs(geometry.offset_m) < 1e-3
     assert np.linalg.norm(geometry.item_points.mean(axis=0)[:2]) < 0.01  # the centre one
     assert geometry.other_clusters == 1
+    second = geometry.other_objects[0]
+    assert np.linalg.norm(second.mean(axis=0)[:2] - (0.12, 0.05)) < 0.01
     assert np.all(geometry.height_m(geometry.plane_points) < 2e-3)
+
+
+def test_another_object_beside_the_food_is_sure_background():
+    # the scene above seen by one of the ring's cameras: the second ball's pixels start as
+    # sure background (GrabCut may not grow the food into them), the item's as probable food
+    import cv2
+
+    from volec.capture import Intrinsics
+    from volec.segment import _pixels, _View, seed_labels
+
+    rng = np.random.default_rng(0)
+    points = _scene_points(rng, [((0.0, 0.0, 0.03), 0.03), ((0.12, 0.05, 0.02), 0.02)])
+    poses = _ring_cameras()
+    cfg = SegmentConfig()
+    geometry = find_item(poses, points, UP, cfg)
+    intr = Intrinsics(width=320, height=240, fx=300.0, fy=300.0, cx=160.0, cy=120.0)
+    # camera 7 sees the second ball just beyond the item, within GrabCut's reach of it
+    view = _View(np.zeros((240, 320, 3), np.uint8), intr, np.linalg.inv(poses[7]), 1.0)
+    top = _pixels(view, np.array([[0.12, 0.05, 0.04], [0.0, 0.0, 0.06]]))
+    labels = seed_labels(view, geometry, cfg)
+    assert labels[top[0, 1], top[0, 0]] == cv2.GC_BGD
+    assert labels[top[1, 1], top[1, 0]] == cv2.GC_PR_FGD
+    unaware = seed_labels(view, replace(geometry, other_objects=()), cfg)
+    assert unaware[top[0, 1], top[0, 0]] == cv2.GC_PR_BGD  # what it was before
 
 
 def test_a_raised_plate_rim_near_the_item_is_not_part_of_it():
@@ -146,7 +174,7 @@ def test_masks_match_the_exact_ones_on_a_synthetic_capture(quick_capture, tmp_pa
 def test_hull_voxel_grows_only_for_items_too_large_for_the_grid():
     def geometry(side_m: float) -> SceneGeometry:
         corners = np.array([[0.0, 0.0, 0.0], [side_m, side_m / 2, side_m / 3]])
-        return SceneGeometry(np.zeros(3), UP, 0.0, corners, np.zeros((0, 3)), 0)
+        return SceneGeometry(np.zeros(3), UP, 0.0, corners, np.zeros((0, 3)))
 
     cfg = SegmentConfig(voxel_m=0.001, hull_margin_m=0.02, hull_max_voxels_across=240)
     assert hull_voxel_m(geometry(0.1), cfg) == 0.001  # 140 voxels across: as configured

@@ -798,9 +798,9 @@ def segmentation_row(root: Path, item: str, scenario: Scenario, cfg: EstimateCon
             # imperfect masks get the settings volec documents for them (the tolerant_masks
             # preset's masking and carving), the rest of the experiment's config unchanged
             tolerant = PRESETS["tolerant_masks"]
-            noisy_cfg = replace(cfg, masking=tolerant.masking,
-                                meshing=replace(cfg.meshing, silhouette_min_share=(
-                                    tolerant.meshing.silhouette_min_share)))
+            noisy_cfg = replace(cfg, masking=tolerant.masking, meshing=replace(
+                cfg.meshing, silhouette_min_views=tolerant.meshing.silhouette_min_views,
+                silhouette_min_share=tolerant.meshing.silhouette_min_share))
             row["noisy_ml"] = _volume_with_masks(out, capture, noisy, "work-noisy", noisy_cfg,
                                                  model)
         return row

@@ -207,8 +207,14 @@ class SceneGeometry:
     """(M, 3) the sparse points of the item."""
     plane_points: np.ndarray
     """(K, 3) the sparse points of the support plane around the item."""
-    other_clusters: int
-    """Other clusters standing on the plane (a cup, a utensil) that were left out."""
+    other_objects: tuple[np.ndarray, ...] = ()
+    """(K, 3) the sparse points of each other object standing on the plane near the item (a
+    cup, a utensil), left out."""
+
+    @property
+    def other_clusters(self) -> int:
+        """How many other objects were left out."""
+        return len(self.other_objects)
 
     def height_m(self, points: np.ndarray) -> np.ndarray:
         """Heights (N,) of ``points`` above the plane."""
@@ -252,8 +258,8 @@ def _support_plane(points: np.ndarray, centres: np.ndarray, up: np.ndarray | Non
 
 
 def _item_cluster(local: np.ndarray, normal: np.ndarray, offset: float, fixation: np.ndarray,
-                  distance: float, cfg: SegmentConfig) -> tuple[np.ndarray, int]:
-    """(indices into ``local`` of the item's points, how many other objects stand there):
+                  distance: float, cfg: SegmentConfig) -> tuple[np.ndarray, list[np.ndarray]]:
+    """(indices into ``local`` of the item's points, those of each other object there):
     the cluster of points above the plane (``normal``, ``offset``) nearest to the fixation
     point, with the clusters near it (:func:`_merge_near`) except those that enclose it (the
     raised rim of a plate, the wall of a bowl: :func:`_encloses`)."""
@@ -294,7 +300,7 @@ def _item_cluster(local: np.ndarray, normal: np.ndarray, offset: float, fixation
                 "several separate objects stand where the cameras look (clusters of "
                 f"{len(item)} and {len(second)} points, {gaps[best] * 1000:.0f} and "
                 f"{gap * 1000:.0f} mm from it): film one item at a time, or give masks")
-    return item, len(rest)
+    return item, rest
 
 
 def _encloses(cluster: np.ndarray, item: np.ndarray, normal: np.ndarray, span_deg: float
@@ -387,7 +393,8 @@ def find_item(T_world_from_cam: np.ndarray, points: np.ndarray, up: np.ndarray |
     extent = float(np.percentile(np.linalg.norm(item - item.mean(axis=0), axis=1), 95))
     on_plane = np.abs(height) < cfg.plane_inlier_m
     near_item = _footprint_distance(local, item, normal) < 3.0 * extent + 0.02
-    return SceneGeometry(fixation, normal, offset, item, local[on_plane & near_item], others)
+    return SceneGeometry(fixation, normal, offset, item, local[on_plane & near_item],
+                         tuple(local[c] for c in others))
 
 
 # ----------------------------------------------------------------------------- one view
@@ -534,9 +541,10 @@ def seed_labels(view: _View, geometry: SceneGeometry, cfg: SegmentConfig,
     """GrabCut's starting labels for one view: the item's projected points (closed and
     filled) probable food; the rest of the item's region (:func:`item_region`) and a margin
     around it probable background; the plane's projected points outside the item and the
-    rest of the image sure background. With the plane ``consistency`` map, textured pixels
-    that match the plane are sure background (shadows, a table the colour of the food) and
-    textured pixels of the item's region that do not are probable food."""
+    rest of the image sure background, and so is every other object standing on the plane
+    (the convex hull of its points and their feet). With the plane ``consistency`` map,
+    textured pixels that match the plane are sure background (shadows, a table the colour of
+    the food) and textured pixels of the item's region that do not are probable food."""
     import cv2
 
     shape = view.rgb.shape[:2]
@@ -549,6 +557,10 @@ def seed_labels(view: _View, geometry: SceneGeometry, cfg: SegmentConfig,
     labels[reach] = cv2.GC_PR_BGD
     labels[item] = cv2.GC_PR_FGD
     labels[plane & ~ndimage.binary_dilation(item, iterations=2)] = cv2.GC_BGD
+    others = np.zeros(shape, bool)
+    for points in geometry.other_objects:  # a cup or a fork beside the food: never food
+        feet = points - np.outer(geometry.height_m(points), geometry.normal)
+        others |= _convex_fill(shape, _pixels(view, np.vstack([points, feet])))
     if consistency is not None:  # evidence of background only: a smooth plate matches badly
         with np.errstate(invalid="ignore"):
             on_plane = consistency > cfg.plane_match_ncc
@@ -562,8 +574,9 @@ def seed_labels(view: _View, geometry: SceneGeometry, cfg: SegmentConfig,
         # a stereo window straddling the item's border gives the background beside it the
         # item's depth: only pixels a window's width inside are sure
         inset = int(np.ceil(cfg.stereo_window_px / 2 / cfg.stereo_scale)) + 2
-        labels[ndimage.binary_erosion(standing, iterations=inset)] = cv2.GC_FGD
+        labels[ndimage.binary_erosion(standing, iterations=inset) & region] = cv2.GC_FGD
         labels[lying & ~item & (labels != cv2.GC_FGD)] = cv2.GC_BGD
+    labels[others & ~item] = cv2.GC_BGD
     return labels
 
 
