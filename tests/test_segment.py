@@ -180,3 +180,29 @@ def test_hull_voxel_grows_only_for_items_too_large_for_the_grid():
     assert hull_voxel_m(geometry(0.1), cfg) == 0.001  # 140 voxels across: as configured
     # 0.5 m and two 2 cm margins across 240 voxels
     assert hull_voxel_m(geometry(0.5), cfg) == pytest.approx(0.54 / 240)
+
+
+def test_stereo_makes_sure_food_only_within_the_items_footprint():
+    # stereo that puts the plate around the item above it (a plain plate's noise): those
+    # pixels may become food only by their colour, never start as sure food
+    import cv2
+    from scipy import ndimage
+
+    from volec.capture import Intrinsics
+    from volec.segment import _View, item_region, seed_labels
+
+    points = _scene_points(np.random.default_rng(0), [((0.0, 0.0, 0.03), 0.03)])
+    poses = _ring_cameras()
+    cfg = SegmentConfig()
+    geometry = find_item(poses, points, UP, cfg)
+    intr = Intrinsics(width=320, height=240, fx=300.0, fy=300.0, cx=160.0, cy=120.0)
+    view = _View(np.zeros((240, 320, 3), np.uint8), intr, np.linalg.inv(poses[0]), 1.0)
+    region = item_region(view, geometry)
+    around = ndimage.binary_dilation(region, iterations=cfg.probable_margin_px)
+    heights = np.where(around, 0.02, np.nan)  # 2 cm up, the item and the plate around it
+    # beyond the item's projected points, which reach a few pixels past that convex hull
+    ring = around & ~ndimage.binary_dilation(region, iterations=8)
+    labels = seed_labels(view, geometry, cfg, heights=heights)
+    assert not (labels[ring] == cv2.GC_FGD).any()
+    assert (labels[ring] == cv2.GC_PR_FGD).mean() > 0.5
+    assert (labels[region] == cv2.GC_FGD).any()
