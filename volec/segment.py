@@ -119,9 +119,10 @@ class SegmentConfig:
     ``hull_max_voxels_across``)."""
     hull_max_voxels_across: int = 240
     """The hull's voxels grow beyond ``voxel_m`` for an item whose grid would span more than
-    this many along its longest side: the hull's cost grows with the cube of that count (a
-    30 cm item at 1 mm took 5 minutes, on the instant-ngp fox's real photos). Every
-    benchmark item (at most 186 mm, 226 with the margins) keeps 1 mm."""
+    this many along its longest side: the hull's cost grows with the cube of that count (on
+    the instant-ngp fox's real photos, a 26 cm item at a guessed scale, the 1 mm hull took
+    5 minutes with two other jobs on the cores). Every benchmark item (at most 186 mm, 226
+    with the margins) keeps 1 mm."""
     hull_max_outside_views: int = 1
     """A voxel is food when at most this many of the hull views put it outside their mask:
     one view's mistake is outvoted, but two views that see empty space are believed (with a
@@ -542,7 +543,7 @@ def seed_labels(view: _View, geometry: SceneGeometry, cfg: SegmentConfig,
     filled) probable food; the rest of the item's region (:func:`item_region`) and a margin
     around it probable background; the plane's projected points outside the item and the
     rest of the image sure background, and so is every other object standing on the plane
-    (the convex hull of its points and their feet). With the plane ``consistency`` map,
+    (its projected points, closed) outside the item's region. With the plane ``consistency`` map,
     textured pixels that match the plane are sure background (shadows, a table the colour of
     the food) and textured pixels of the item's region that do not are probable food."""
     import cv2
@@ -557,10 +558,12 @@ def seed_labels(view: _View, geometry: SceneGeometry, cfg: SegmentConfig,
     labels[reach] = cv2.GC_PR_BGD
     labels[item] = cv2.GC_PR_FGD
     labels[plane & ~ndimage.binary_dilation(item, iterations=2)] = cv2.GC_BGD
+    # a cup or a fork beside the food: its points, closed, are never food; not their convex
+    # hull, which for an arc of a plate's rim round the item would cover the item itself
     others = np.zeros(shape, bool)
-    for points in geometry.other_objects:  # a cup or a fork beside the food: never food
-        feet = points - np.outer(geometry.height_m(points), geometry.normal)
-        others |= _convex_fill(shape, _pixels(view, np.vstack([points, feet])))
+    for points in geometry.other_objects:
+        others |= _splat(shape, _pixels(view, points), cfg.seed_splat_px)
+    others = ndimage.binary_closing(others, iterations=4) & ~region
     if consistency is not None:  # evidence of background only: a smooth plate matches badly
         with np.errstate(invalid="ignore"):
             on_plane = consistency > cfg.plane_match_ncc
@@ -576,7 +579,7 @@ def seed_labels(view: _View, geometry: SceneGeometry, cfg: SegmentConfig,
         inset = int(np.ceil(cfg.stereo_window_px / 2 / cfg.stereo_scale)) + 2
         labels[ndimage.binary_erosion(standing, iterations=inset) & region] = cv2.GC_FGD
         labels[lying & ~item & (labels != cv2.GC_FGD)] = cv2.GC_BGD
-    labels[others & ~item] = cv2.GC_BGD
+    labels[others] = cv2.GC_BGD
     return labels
 
 
