@@ -148,8 +148,9 @@ PRESETS: dict[str, EstimateConfig] = {
     # preset (MeshingConfig.silhouette_max_contradiction). With the benchmark's noisy masks
     # (boundaries 1-3 px off, shadow leaks, missed chunks, false blobs, two empty) on the 21
     # full orbits, network completion: MAPE 1.64 % (exact masks 1.55 %), where carving that
-    # needed 10 % of the views gave 2.08 %: a share of all the views that see a point is more
-    # than the few that see it edge-on, so the unseen gap under the food stayed.
+    # needed 10 % of the views gave 2.08 % on the same stage results: a share of all the views
+    # that see a point is more than the few that see it edge-on, so the unseen gap under the
+    # food stayed. Notebook 02's run of this code, captures made anew: 1.72 %.
     "tolerant_masks": EstimateConfig(
         masking=replace(MaskingConfig(), min_inside_fraction=0.9),
         meshing=replace(MeshingConfig(), silhouette_min_views=3)),
