@@ -4,22 +4,28 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import cv2
 import numpy as np
 import pytest
 from PIL import Image
+from scipy import ndimage
 
-from volec.capture import read_transforms_json
+from volec.capture import Intrinsics, read_transforms_json
 from volec.geometry import look_at_opencv
 from volec.metrics import sample_surface
 from volec.segment import (
     SceneGeometry,
     SegmentationError,
     SegmentConfig,
+    _pixels,
+    _View,
     check_in_view,
     find_item,
     hull_voxel_m,
+    item_region,
     load_masks,
     save_masks,
+    seed_labels,
     segment,
 )
 from volec.synth import load_ground_truth_mesh, load_truth
@@ -65,11 +71,6 @@ def test_the_item_on_the_table_is_found_and_a_second_object_left_out():
 def test_another_object_beside_the_food_is_sure_background():
     # the scene above seen by one of the ring's cameras: the second ball's pixels start as
     # sure background (GrabCut may not grow the food into them), the item's as probable food
-    import cv2
-
-    from volec.capture import Intrinsics
-    from volec.segment import _pixels, _View, seed_labels
-
     rng = np.random.default_rng(0)
     points = _scene_points(rng, [((0.0, 0.0, 0.03), 0.03), ((0.12, 0.05, 0.02), 0.02)])
     poses = _ring_cameras()
@@ -185,12 +186,6 @@ def test_hull_voxel_grows_only_for_items_too_large_for_the_grid():
 def test_stereo_makes_sure_food_only_within_the_items_footprint():
     # stereo that puts the plate around the item above it (a plain plate's noise): those
     # pixels may become food only by their colour, never start as sure food
-    import cv2
-    from scipy import ndimage
-
-    from volec.capture import Intrinsics
-    from volec.segment import _View, item_region, seed_labels
-
     points = _scene_points(np.random.default_rng(0), [((0.0, 0.0, 0.03), 0.03)])
     poses = _ring_cameras()
     cfg = SegmentConfig()

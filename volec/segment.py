@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -543,8 +543,8 @@ def seed_labels(view: _View, geometry: SceneGeometry, cfg: SegmentConfig,
     filled) probable food; the rest of the item's region (:func:`item_region`) and a margin
     around it probable background; the plane's projected points outside the item and the
     rest of the image sure background, and so is every other object standing on the plane
-    (its projected points, closed) outside the item's region. With the plane ``consistency`` map,
-    textured pixels that match the plane are sure background (shadows, a table the colour of
+    (its projected points, closed) outside the item's region. With the plane ``consistency``
+    map, textured pixels that match the plane are sure background (shadows, a table the colour of
     the food) and textured pixels of the item's region that do not are probable food."""
     import cv2
 
@@ -558,12 +558,6 @@ def seed_labels(view: _View, geometry: SceneGeometry, cfg: SegmentConfig,
     labels[reach] = cv2.GC_PR_BGD
     labels[item] = cv2.GC_PR_FGD
     labels[plane & ~ndimage.binary_dilation(item, iterations=2)] = cv2.GC_BGD
-    # a cup or a fork beside the food: its points, closed, are never food; not their convex
-    # hull, which for an arc of a plate's rim round the item would cover the item itself
-    others = np.zeros(shape, bool)
-    for points in geometry.other_objects:
-        others |= _splat(shape, _pixels(view, points), cfg.seed_splat_px)
-    others = ndimage.binary_closing(others, iterations=4) & ~region
     if consistency is not None:  # evidence of background only: a smooth plate matches badly
         with np.errstate(invalid="ignore"):
             on_plane = consistency > cfg.plane_match_ncc
@@ -579,7 +573,12 @@ def seed_labels(view: _View, geometry: SceneGeometry, cfg: SegmentConfig,
         inset = int(np.ceil(cfg.stereo_window_px / 2 / cfg.stereo_scale)) + 2
         labels[ndimage.binary_erosion(standing, iterations=inset) & region] = cv2.GC_FGD
         labels[lying & ~item & (labels != cv2.GC_FGD)] = cv2.GC_BGD
-    labels[others] = cv2.GC_BGD
+    # a cup or a fork beside the food: its points, closed, are never food; not their convex
+    # hull, which for an arc of a plate's rim round the item would cover the item itself
+    others = np.zeros(shape, bool)
+    for points in geometry.other_objects:
+        others |= _splat(shape, _pixels(view, points), cfg.seed_splat_px)
+    labels[ndimage.binary_closing(others, iterations=4) & ~region] = cv2.GC_BGD
     return labels
 
 
@@ -675,14 +674,14 @@ def _carve(grid: np.ndarray, views: list[_View], masks: list[np.ndarray],
 
 
 def visual_hull(views: list[_View], masks: list[np.ndarray], geometry: SceneGeometry,
-                cfg: SegmentConfig) -> np.ndarray:
-    """(P, 3) voxel centres around the surface of the hull the masks agree on, above the plane
-    (step 5): a voxel is food when at most ``hull_max_outside_views`` of the views that see it
-    put it outside their (work-resolution) mask, and at least three views see it. Carved
-    first on a grid four times coarser, with the masks grown by a coarse voxel, then at full
-    resolution only in the coarse surface cells (the shell the silhouettes need; they are
-    filled in the image)."""
-    coarse_m = 4 * cfg.voxel_m
+                cfg: SegmentConfig, voxel_m: float) -> np.ndarray:
+    """(P, 3) centres of ``voxel_m`` voxels around the surface of the hull the masks agree on,
+    above the plane (step 5): a voxel is food when at most ``hull_max_outside_views`` of the
+    views that see it put it outside their (work-resolution) mask, and at least three views
+    see it. Carved first on a grid four times coarser, with the masks grown by a coarse voxel,
+    then at full resolution only in the coarse surface cells (the shell the silhouettes need;
+    they are filled in the image)."""
+    coarse_m = 4 * voxel_m
     reach = [int(np.ceil(coarse_m * v.intrinsics.fx
                          / np.median(np.linalg.norm(geometry.item_points - _centre(v), axis=1))))
              for v in views]
@@ -693,9 +692,9 @@ def visual_hull(views: list[_View], masks: list[np.ndarray], geometry: SceneGeom
         return coarse
     coarse = hull_surface(coarse, coarse_m)  # the inside needs no finer look
     offsets = (np.stack(np.meshgrid(*[np.arange(-4, 4)] * 3, indexing="ij"), axis=-1)
-               .reshape(-1, 3) + 0.5) * cfg.voxel_m
+               .reshape(-1, 3) + 0.5) * voxel_m
     fine = (coarse[:, None, :] + offsets[None]).reshape(-1, 3)
-    fine = fine[geometry.height_m(fine) > -0.5 * cfg.voxel_m]
+    fine = fine[geometry.height_m(fine) > -0.5 * voxel_m]
     return _carve(fine, views, masks, cfg.hull_max_outside_views)
 
 
@@ -837,7 +836,6 @@ def segment(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarr
     geometry = find_item(T_world_from_cam[registered], sparse_xyz,
                          None if up is None else np.asarray(up, float), cfg)
     voxel_m = hull_voxel_m(geometry, cfg)
-    run_cfg = replace(cfg, voxel_m=voxel_m)
     chosen = hull_views(registered, cfg.hull_views)
     views = [_work_view(capture, int(i), T_world_from_cam[i], cfg) for i in chosen]
     coarse = []
@@ -851,7 +849,7 @@ def segment(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarr
         heights = stereo_heights(view, others, roi, geometry, cfg)
         coarse.append(grabcut(view.rgb, seed_labels(view, geometry, cfg, consistency, heights),
                               cfg.grabcut_iterations))
-    voxels = visual_hull(views, coarse, geometry, run_cfg)
+    voxels = visual_hull(views, coarse, geometry, cfg, voxel_m)
     if len(voxels) == 0:
         raise SegmentationError("the views do not agree on any food: the colours of food and "
                                 "plate may be too close (give masks)")
