@@ -24,9 +24,11 @@ from volec.segment import (
     hull_voxel_m,
     item_region,
     load_masks,
+    outside_footprint_m,
     save_masks,
     seed_labels,
     segment,
+    support_height_m,
 )
 from volec.synth import load_ground_truth_mesh, load_truth
 
@@ -105,6 +107,66 @@ def test_a_raised_plate_rim_near_the_item_is_not_part_of_it():
     assert np.all(off_ball < 1e-9)  # the ball's points only (a few at its foot lie on the
     assert len(geometry.item_points) > 0.95 * len(ball)  # plane's inlier band)
     assert geometry.other_clusters == 0  # a rim is not a second object either
+
+
+def test_a_fork_beside_the_item_is_not_part_of_it():
+    # a bar 14 mm wide and 17 cm long (a fork resting on something) beside a 6 cm ball at
+    # its equator's height, with fewer points than the ball: a cluster of its own, near
+    # enough to merge, and it goes round the ball's centre by about 120 degrees
+    rng = np.random.default_rng(4)
+    fork = np.c_[rng.uniform(-0.085, 0.085, 250), rng.uniform(0.0385, 0.0525, 250),
+                 rng.uniform(0.028, 0.032, 250)]
+    table_and_ball = _scene_points(rng, [((0.0, 0.0, 0.03), 0.03)])
+    ball = table_and_ball[table_and_ball[:, 2] > 0]
+    assert 0.008 < np.min(np.linalg.norm(fork[:, None] - ball[None], axis=2)) < 0.01
+    geometry = find_item(_ring_cameras(), np.vstack([table_and_ball, fork]), UP,
+                         SegmentConfig())
+    off_ball = np.abs(np.linalg.norm(geometry.item_points - (0.0, 0.0, 0.03), axis=1) - 0.03)
+    assert np.all(off_ball < 1e-9)
+    assert geometry.other_clusters == 0  # left out, like a rim
+    merged = find_item(_ring_cameras(), np.vstack([table_and_ball, fork]), UP,
+                       SegmentConfig(beside_span_deg=360.0))
+    assert len(merged.item_points) == len(geometry.item_points) + 250  # the rule matters
+
+
+def _square_geometry(side_m: float, height_m: float) -> SceneGeometry:
+    """An item whose sparse points fill a box ``side_m`` square, from 2 cm above the plane
+    z = 0 (what SfM sees of its sides) to ``height_m``."""
+    rng = np.random.default_rng(5)
+    item = rng.uniform([-side_m / 2, -side_m / 2, 0.02], [side_m / 2, side_m / 2, height_m],
+                       (2000, 3))
+    item[:4, :2] = np.array([[-1, -1], [-1, 1], [1, -1], [1, 1]]) * side_m / 2  # its corners
+    return SceneGeometry(np.zeros(3), UP, 0.0, item, np.zeros((0, 3)))
+
+
+def test_the_distance_outside_the_footprint_is_measured_along_the_plane():
+    geometry = _square_geometry(0.04, 0.03)
+    points = np.array([[0.03, 0.0, 0.5], [0.0, -0.025, 0.0], [0.0, 0.0, 0.01],
+                       [np.nan, 0.0, 0.0]])
+    distance = outside_footprint_m(points, geometry)
+    np.testing.assert_allclose(distance[:3], [0.01, 0.005, -0.02], atol=1e-9)
+    assert np.isnan(distance[3])
+
+
+@pytest.mark.parametrize("plate_top_m", [0.0, 0.012])
+def test_the_surface_under_the_item_is_found_from_stereo_around_it(plate_top_m):
+    # stereo points on a plain plate around the item (its top 12 mm above the table the
+    # sparse points found, or on that table), some on the item, some NaN
+    geometry = _square_geometry(0.04, 0.05)
+    rng = np.random.default_rng(6)
+    ring = np.c_[rng.uniform(-0.05, 0.05, (4000, 2)),
+                 plate_top_m + rng.normal(0, 0.0005, 4000)]
+    ring = ring[np.abs(ring[:, :2]).max(axis=1) > 0.027]
+    on_item = rng.uniform([-0.02, -0.02, 0.02], [0.02, 0.02, 0.05], (3000, 3))
+    maps = [np.vstack([ring, on_item, np.full((50, 3), np.nan)]).reshape(-1, 1, 3)]
+    assert support_height_m(maps, geometry, SegmentConfig()) == pytest.approx(plate_top_m,
+                                                                              abs=0.001)
+    # where the sparse points found the plane round the item, it is the surface under it
+    # (what stereo sees there may be the item's own lower sides)
+    plane = np.c_[rng.uniform(-0.05, 0.05, (400, 2)), np.zeros(400)]
+    plane = plane[np.abs(plane[:, :2]).max(axis=1) > 0.027]
+    found = replace(geometry, plane_points=plane)
+    assert support_height_m(maps, found, SegmentConfig()) == 0.0
 
 
 @pytest.mark.parametrize("objects, words", [

@@ -17,7 +17,11 @@ object segmentation in multiple views using volumetric graph-cuts", IVC 2010):
    point (another object beside it is another cluster, and is left out);
 4. on a subset of evenly spread views, OpenCV's GrabCut (a colour graph cut) seeded from the
    projection of the item's points (probable food), of the plane's points around it (sure
-   background: plate, table and shadows cast on them) and the image border;
+   background: plate, table and shadows cast on them), the image border, and stereo against
+   two neighbouring views: what stands above the plane within the item's footprint is food,
+   what lies on it is not. Where the plate is so plain that SfM found no point on it, the
+   plane found is the table under it; stereo round the item finds the plate's top, and the
+   plane is lifted to it;
 5. the visual hull of those masks on a voxel grid (a voxel is food when nearly all views that
    see it agree, so one view's mistake is outvoted), cut at the support plane;
 6. every frame's mask: the hull's silhouette in that frame, refined by GrabCut in a narrow
@@ -30,7 +34,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -86,6 +90,12 @@ class SegmentConfig:
     item's own points (a plate's raised rim, a bowl's wall), is never merged into it: the
     yellow cane's end came within 1 cm of the rim and the whole rim (a ring 97-160 mm from
     it, 358 degrees round) joined it."""
+    beside_span_deg: float = 90.0
+    """A cluster smaller than the item's that goes round it by more than this angle, farther
+    out than the item's own points, is never merged into it either: a fork lying beside the
+    durum on a dark plate spans 126 degrees seen from its centre, and its end came within
+    1 cm of the durum's. Clusters larger than the item's are held to ``enclosing_span_deg``
+    (when the cameras aim at a small fragment, the rest of the item goes round it)."""
     ambiguous_gap_m: float = 0.01
     """A second object at most this much farther from the fixation point than the nearest,
     and at least half its size, makes the choice ambiguous: an error."""
@@ -107,6 +117,13 @@ class SegmentConfig:
     """Depths whose NCC is below this are not used as seeds."""
     plane_height_m: float = 0.0015
     """Pixels that stereo puts within this of the support plane are background."""
+    stereo_footprint_margin_m: float = 0.0
+    """Stereo points farther than this outside the item's footprint (the convex hull of its
+    sparse points seen from above) are no evidence of food: on a plain plate, stereo finds
+    the plate and, beside the item, the item's own depth."""
+    support_ring_m: tuple[float, float] = (0.005, 0.03)
+    """Stereo points this far outside the item's footprint (from, to; metres) show the
+    surface it rests on (:func:`support_height_m`)."""
     plane_match_ncc: float = 0.8
     """Textured pixels that match their neighbours through the support plane this well are
     background (see :func:`plane_consistency`)."""
@@ -211,6 +228,9 @@ class SceneGeometry:
     other_objects: tuple[np.ndarray, ...] = ()
     """(K, 3) the sparse points of each other object standing on the plane near the item (a
     cup, a utensil), left out."""
+    standing_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """(K, 3) every sparse point near the item that stands above the plane and is not the
+    item's (other objects, a rim, a utensil, strays)."""
 
     @property
     def other_clusters(self) -> int:
@@ -289,8 +309,10 @@ def _item_cluster(local: np.ndarray, normal: np.ndarray, offset: float, fixation
             f"no object at the point the cameras look at (the nearest is {gaps[best] * 1000:.0f}"
             " mm away): aim the orbit at the food (or give masks)")
     others = [clusters[int(k)] for k in order[1:]]
-    others = [c for c in others if not _encloses(local[c], local[clusters[best]], normal,
-                                                 cfg.enclosing_span_deg)]
+    main = clusters[best]
+    others = [c for c in others if not _encloses(
+        local[c], local[main], normal,
+        cfg.enclosing_span_deg if len(c) >= len(main) else cfg.beside_span_deg)]
     item, rest = _merge_near(local, clusters[best], others, cfg.merge_gap_m)
     if rest:
         second = min(rest, key=lambda c: float(np.linalg.norm(local[c] - fixation, axis=1)
@@ -394,8 +416,10 @@ def find_item(T_world_from_cam: np.ndarray, points: np.ndarray, up: np.ndarray |
     extent = float(np.percentile(np.linalg.norm(item - item.mean(axis=0), axis=1), 95))
     on_plane = np.abs(height) < cfg.plane_inlier_m
     near_item = _footprint_distance(local, item, normal) < 3.0 * extent + 0.02
+    standing = near_item & (height > cfg.min_height_m)
+    standing[item_idx] = False
     return SceneGeometry(fixation, normal, offset, item, local[on_plane & near_item],
-                         tuple(local[c] for c in others))
+                         tuple(local[c] for c in others), local[standing])
 
 
 # ----------------------------------------------------------------------------- one view
@@ -501,12 +525,12 @@ def plane_consistency(view: _View, neighbours: list[_View], geometry: SceneGeome
     return np.where(texture >= min_texture, best, np.nan)
 
 
-def stereo_heights(view: _View, neighbours: list[_View], roi: np.ndarray,
-                   geometry: SceneGeometry, cfg: SegmentConfig) -> np.ndarray:
-    """Per pixel of ``view`` inside ``roi`` (H, W): the height above the support plane of what
-    it sees, from a plane-sweep depth map against ``neighbours`` (:mod:`volec.dense`'s
-    stereo, at the segmentation's working size); NaN where stereo found no depth. Where the
-    item's sparse points cover only its top, its body still stands above the plane."""
+def stereo_points(view: _View, neighbours: list[_View], roi: np.ndarray,
+                  geometry: SceneGeometry, cfg: SegmentConfig) -> np.ndarray:
+    """Per pixel of ``view`` inside ``roi`` (H, W, 3): the world point it sees, from a
+    plane-sweep depth map against ``neighbours`` (:mod:`volec.dense`'s stereo, at the
+    segmentation's working size); NaN where stereo found no depth. Where the item's sparse
+    points cover only its top, its body still stands above the plane."""
     import cv2
 
     from volec.dense import DenseConfig, View, backproject, depth_range, estimate_depth
@@ -526,14 +550,86 @@ def stereo_heights(view: _View, neighbours: list[_View], roi: np.ndarray,
     near_far = depth_range(views[0], np.vstack([geometry.item_points, geometry.plane_points]),
                            0.15)
     if near_far is None or not neighbours or not roi.any():
-        return np.full(roi.shape, np.nan)
+        return np.full((*roi.shape, 3), np.nan)
     depth = estimate_depth(views, 0, list(range(1, len(views))), near_far, dcfg).depth_m
     rows, cols = np.nonzero(depth > 0)
-    points = backproject(views[0].K, views[0].T_cam_from_world,
-                         np.stack([cols, rows], axis=1).astype(float), depth[rows, cols])
-    small = np.full(depth.shape, np.nan)
-    small[rows, cols] = geometry.height_m(points)
+    small = np.full((*depth.shape, 3), np.nan)
+    small[rows, cols] = backproject(views[0].K, views[0].T_cam_from_world,
+                                    np.stack([cols, rows], axis=1).astype(float),
+                                    depth[rows, cols])
     return cv2.resize(small, roi.shape[::-1], interpolation=cv2.INTER_NEAREST)
+
+
+def outside_footprint_m(points: np.ndarray, geometry: SceneGeometry) -> np.ndarray:
+    """How far (...,) each of ``points`` (..., 3) lies outside the item's footprint along the
+    plane (the convex hull of its sparse points seen from above; negative inside, NaN where
+    a point is NaN). The distance to the farthest edge line of the hull: exact beside an edge,
+    less beyond a corner."""
+    from scipy.spatial import ConvexHull
+
+    normal = geometry.normal
+    u = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    basis = np.stack([u, np.cross(normal, u)], axis=1)  # (3, 2) along the plane
+    edges = ConvexHull(geometry.item_points @ basis).equations  # (E, 3): unit normal, offset
+    flat = np.asarray(points) @ basis
+    return (flat @ edges[:, :2].T + edges[:, 2]).max(axis=-1)
+
+
+def _azimuth_cover(points: np.ndarray, geometry: SceneGeometry, bin_deg: float = 10.0
+                   ) -> float:
+    """The share of the directions round the item's centre (``bin_deg`` sectors, along the
+    plane) in which some of ``points`` (N, 3) lie."""
+    rel = points - geometry.item_points.mean(axis=0)
+    rel = rel - np.outer(rel @ geometry.normal, geometry.normal)
+    if not len(rel):
+        return 0.0
+    u = rel[0] / (np.linalg.norm(rel[0]) or 1.0)
+    azimuth = np.degrees(np.arctan2(rel @ np.cross(geometry.normal, u), rel @ u)) % 360.0
+    return len(np.unique(np.floor(azimuth / bin_deg))) * bin_deg / 360.0
+
+
+def support_height_m(point_maps: list[np.ndarray], geometry: SceneGeometry,
+                     cfg: SegmentConfig) -> float:
+    """The height above the support plane of the surface the item rests on, from what stereo
+    sees around its footprint in the hull views (``point_maps``, :func:`stereo_points`): 0
+    where that is the plane the sparse points found, more where the food lies on a plate so
+    plain that SfM found no point on it (the plane found is then the table under the plate).
+    The most common height, in ``plane_height_m`` bins, of the stereo points between
+    ``support_ring_m`` outside the footprint, below the item's lowest sparse points and away
+    from the other sparse points standing above the plane (a fork's top); 0 where
+    that is not above ``min_height_m`` (a plate that thin is the plane for the masks), and
+    where the plane's own sparse points lie round the item in half the directions or more
+    (its lower sides, which the sparse points may have missed, would otherwise pass for a
+    plate; the table shows only where the item reaches past the plate's edge). Stereo at the
+    segmentation's size measures heights to a few millimetres: the dark plate's top, 12.5 mm
+    above the table, came out at 15.8 mm."""
+    from scipy.spatial import cKDTree
+
+    plane_outside = outside_footprint_m(geometry.plane_points, geometry)
+    around = geometry.plane_points[(plane_outside > cfg.support_ring_m[0])
+                                   & (plane_outside < cfg.support_ring_m[1])]
+    if _azimuth_cover(around, geometry) >= 0.5:
+        return 0.0  # the sparse points found the surface round the item: it is the plane
+    points = np.concatenate([m.reshape(-1, 3) for m in point_maps])
+    points = points[np.isfinite(points).all(axis=1)]
+    if not len(points):
+        return 0.0
+    outside = outside_footprint_m(points, geometry)
+    points = points[(outside > cfg.support_ring_m[0]) & (outside < cfg.support_ring_m[1])]
+    if len(geometry.standing_points):  # not a fork's top, nor a rim's
+        gap, _ = cKDTree(geometry.standing_points).query(points)
+        points = points[gap > 0.5 * cfg.cluster_eps_m]
+    heights = geometry.height_m(points)
+    top = float(np.percentile(geometry.height_m(geometry.item_points), 2))
+    heights = heights[(heights > -cfg.plane_height_m) & (heights < top)]
+    if len(heights) < 100:
+        return 0.0
+    bins = np.arange(-cfg.plane_height_m, top + cfg.plane_height_m, cfg.plane_height_m)
+    counts, edges = np.histogram(heights, bins=bins)
+    k = int(np.argmax(counts))
+    lift = float(np.median(heights[(heights >= edges[k]) & (heights < edges[k + 1])]))
+    return lift if lift > cfg.min_height_m else 0.0
 
 
 def seed_labels(view: _View, geometry: SceneGeometry, cfg: SegmentConfig,
@@ -819,6 +915,37 @@ def check_in_view(masks: list[np.ndarray], max_share: float) -> None:
             "that the whole item is in view, or give masks")
 
 
+def hull_view_masks(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarray,
+                    chosen: np.ndarray, geometry: SceneGeometry, cfg: SegmentConfig,
+                    progress: bool = False
+                    ) -> tuple[list[_View], list[np.ndarray], SceneGeometry]:
+    """(the hull views ``chosen`` at GrabCut's working size, their GrabCut masks, the scene
+    with its plane lifted to the surface the item rests on): step 4 of the module docstring,
+    with stereo against two neighbours of each view. The stereo points find that surface
+    (:func:`support_height_m`); those standing above it within the item's footprint seed
+    food, those outside it nothing (:attr:`SegmentConfig.stereo_footprint_margin_m`)."""
+    views = [_work_view(capture, int(i), T_world_from_cam[i], cfg) for i in chosen]
+    neighbours = [[_work_view(capture, int(j), T_world_from_cam[j], cfg)
+                   for j in plane_neighbours(T_world_from_cam, registered, int(i), geometry)]
+                  for i in chosen]
+    point_maps = [stereo_points(view, others, ndimage.binary_dilation(
+        item_region(view, geometry), iterations=cfg.probable_margin_px), geometry, cfg)
+        for view, others in zip(progress_over(views, "segment: hull views", progress, "views"),
+                                neighbours, strict=True)]
+    geometry = replace(geometry, offset_m=geometry.offset_m
+                       - support_height_m(point_maps, geometry, cfg))
+    masks = []
+    for view, others, points in zip(views, neighbours, point_maps, strict=True):
+        heights = geometry.height_m(points)
+        with np.errstate(invalid="ignore"):
+            heights[(outside_footprint_m(points, geometry) > cfg.stereo_footprint_margin_m)
+                    & (heights > cfg.min_height_m)] = np.nan
+        labels = seed_labels(view, geometry, cfg, plane_consistency(view, others, geometry),
+                             heights)
+        masks.append(grabcut(view.rgb, labels, cfg.grabcut_iterations))
+    return views, masks, geometry
+
+
 def _iou(a: np.ndarray, b: np.ndarray) -> float:
     union = np.logical_or(a, b).sum()
     return float(np.logical_and(a, b).sum() / union) if union else 1.0
@@ -837,18 +964,10 @@ def segment(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarr
                          None if up is None else np.asarray(up, float), cfg)
     voxel_m = hull_voxel_m(geometry, cfg)
     chosen = hull_views(registered, cfg.hull_views)
-    views = [_work_view(capture, int(i), T_world_from_cam[i], cfg) for i in chosen]
-    coarse = []
-    for i, view in zip(progress_over(chosen, "segment: hull views", progress, "views"), views,
-                       strict=True):
-        others = [_work_view(capture, int(j), T_world_from_cam[j], cfg)
-                  for j in plane_neighbours(T_world_from_cam, registered, int(i), geometry)]
-        consistency = plane_consistency(view, others, geometry)
-        roi = ndimage.binary_dilation(item_region(view, geometry),
-                                      iterations=cfg.probable_margin_px)
-        heights = stereo_heights(view, others, roi, geometry, cfg)
-        coarse.append(grabcut(view.rgb, seed_labels(view, geometry, cfg, consistency, heights),
-                              cfg.grabcut_iterations))
+    views, coarse, lifted = hull_view_masks(capture, T_world_from_cam, registered, chosen,
+                                            geometry, cfg, progress)
+    lift_m = geometry.offset_m - lifted.offset_m
+    geometry = lifted
     voxels = visual_hull(views, coarse, geometry, cfg, voxel_m)
     if len(voxels) == 0:
         raise SegmentationError("the views do not agree on any food: the colours of food and "
@@ -881,7 +1000,8 @@ def segment(capture: Capture, T_world_from_cam: np.ndarray, registered: np.ndarr
         "item_points": len(geometry.item_points),
         "plane_points": len(geometry.plane_points),
         "other_objects_left_out": geometry.other_clusters,
-        "plane": {"normal": geometry.normal.tolist(), "offset_m": geometry.offset_m},
+        "plane": {"normal": geometry.normal.tolist(), "offset_m": geometry.offset_m,
+                  "lifted_m": round(lift_m, 5)},
         "fixation": geometry.fixation.tolist(),
         "seconds": {"hull_s": round(t_hull, 2),
                     "total_s": round(time.perf_counter() - start, 2)},
