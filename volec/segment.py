@@ -18,10 +18,9 @@ object segmentation in multiple views using volumetric graph-cuts", IVC 2010):
 4. on a subset of evenly spread views, OpenCV's GrabCut (a colour graph cut) seeded from the
    projection of the item's points (probable food), of the plane's points around it (sure
    background: plate, table and shadows cast on them), the image border, and stereo against
-   two neighbouring views: what stands above the plane within the item's footprint is food,
-   what lies on it is not. Where the plate is so plain that SfM found no point on it, the
-   plane found is the table under it; stereo round the item finds the plate's top, and the
-   plane is lifted to it;
+   two neighbouring views: what stands above the plane is food, what lies on it is not.
+   Where the plate is so plain that SfM found no point on it, the plane found is the table
+   under it; stereo round the item finds the plate's top, and the plane is lifted to it;
 5. the visual hull of those masks on a voxel grid (a voxel is food when nearly all views that
    see it agree, so one view's mistake is outvoted), cut at the support plane;
 6. every frame's mask: the hull's silhouette in that frame, refined by GrabCut in a narrow
@@ -117,10 +116,6 @@ class SegmentConfig:
     """Depths whose NCC is below this are not used as seeds."""
     plane_height_m: float = 0.0015
     """Pixels that stereo puts within this of the support plane are background."""
-    stereo_footprint_margin_m: float = 0.0
-    """Stereo points farther than this outside the item's footprint (the convex hull of its
-    sparse points seen from above) are no evidence of food: on a plain plate, stereo finds
-    the plate and, beside the item, the item's own depth."""
     support_ring_m: tuple[float, float] = (0.005, 0.03)
     """Stereo points this far outside the item's footprint (from, to; metres) show the
     surface it rests on (:func:`support_height_m`)."""
@@ -922,8 +917,9 @@ def hull_view_masks(capture: Capture, T_world_from_cam: np.ndarray, registered: 
     """(the hull views ``chosen`` at GrabCut's working size, their GrabCut masks, the scene
     with its plane lifted to the surface the item rests on): step 4 of the module docstring,
     with stereo against two neighbours of each view. The stereo points find that surface
-    (:func:`support_height_m`); those standing above it within the item's footprint seed
-    food, those outside it nothing (:attr:`SegmentConfig.stereo_footprint_margin_m`)."""
+    (:func:`support_height_m`), and those standing above it seed food. (Leaving out the stereo
+    points outside the item's footprint, as a plain plate first suggested, cut CO3D's real
+    apple, whose sparse points cover only its top, to that top in every frame.)"""
     views = [_work_view(capture, int(i), T_world_from_cam[i], cfg) for i in chosen]
     neighbours = [[_work_view(capture, int(j), T_world_from_cam[j], cfg)
                    for j in plane_neighbours(T_world_from_cam, registered, int(i), geometry)]
@@ -936,12 +932,8 @@ def hull_view_masks(capture: Capture, T_world_from_cam: np.ndarray, registered: 
                        - support_height_m(point_maps, geometry, cfg))
     masks = []
     for view, others, points in zip(views, neighbours, point_maps, strict=True):
-        heights = geometry.height_m(points)
-        with np.errstate(invalid="ignore"):
-            heights[(outside_footprint_m(points, geometry) > cfg.stereo_footprint_margin_m)
-                    & (heights > cfg.min_height_m)] = np.nan
         labels = seed_labels(view, geometry, cfg, plane_consistency(view, others, geometry),
-                             heights)
+                             geometry.height_m(points))
         masks.append(grabcut(view.rgb, labels, cfg.grabcut_iterations))
     return views, masks, geometry
 
