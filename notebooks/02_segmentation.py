@@ -17,11 +17,12 @@
 # # 02 · Food segmentation without masks
 #
 # No user has a perfect food mask per frame, and volec downloads no weights, so it finds the food
-# itself (`volec.segment`): the support plane and the item standing on it from the SfM points; on
-# 24 evenly spread views, OpenCV's GrabCut seeded by the item's points, by stereo heights above
-# the plane (food) and by what lies on it (plate, table, shadows); the visual hull of those
-# masks, one disagreeing view outvoted; every frame's hull silhouette refined by a colour graph
-# cut in a 4-pixel band.
+# itself (`volec.segment`): the support plane and the item standing on it from the SfM points
+# (a plate so plain that SfM found no point on it is found by stereo round the item, and the
+# plane lifted to its top); on 24 evenly spread views, OpenCV's GrabCut seeded by the item's
+# points, by stereo heights above the plane (food) and by what lies on it (plate, table,
+# shadows); the visual hull of those masks, one disagreeing view outvoted; every frame's hull
+# silhouette refined by a colour graph cut in a 4-pixel band.
 #
 # Scores against the exact masks: IoU and the boundary F-score (boundary pixels within 2 px). The
 # full orbits, and the hard setups (one per item: white food on a white plate, a plate the colour
