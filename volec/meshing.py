@@ -418,6 +418,11 @@ def closed_surface(field_m: np.ndarray, lower: np.ndarray, voxel_m: float) -> tr
     verts, faces, _, _ = marching_cubes(padded, 0.0, spacing=(voxel_m,) * 3,
                                         gradient_direction="ascent")
     mesh = trimesh.Trimesh(verts + np.asarray(lower) - voxel_m, faces, process=True)
+    if not mesh.is_watertight:
+        # Merging the vertices that lie at one point makes an edge non-manifold where two
+        # sheets of the surface touch (a carved croissant's body: 5 such faces, and the
+        # watertight pieces left were crumbs); marching cubes' own vertices are shared already.
+        mesh = trimesh.Trimesh(verts + np.asarray(lower) - voxel_m, faces, process=False)
     if mesh.volume < 0:
         mesh.invert()
     return mesh
@@ -507,7 +512,11 @@ def mesh_cloud(cloud: PointCloud, support: SupportPlane | None = None,
     if silhouettes:
         field_m = _carve(field_m, lower, shape, silhouettes, cfg, report)
     mesh = closed_surface(field_m, lower, cfg.grid_voxel_m)
-    pieces = mesh.split(only_watertight=True)
+    pieces = mesh.split(only_watertight=False)
+    if pieces and not max(pieces, key=lambda m: len(m.faces)).is_watertight:
+        raise MeshingError("the food's surface is not closed (its largest piece has "
+                           "non-manifold edges): no volume can be computed from it")
+    pieces = [m for m in pieces if m.is_watertight]
     report["pieces_dropped"] = max(0, len(pieces) - 1)
     if pieces:
         largest = max(pieces, key=lambda m: m.volume)
