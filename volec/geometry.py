@@ -94,13 +94,19 @@ def horizontal_axes(up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return side, np.cross(up, side)
 
 
+def azimuths_deg(points: np.ndarray, centre: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """The azimuth (N,) in [0, 360) degrees of each of ``points`` (N, 3) around ``centre``,
+    about the axis ``up`` (from :func:`horizontal_axes`' first axis)."""
+    side, other = horizontal_axes(up)
+    rel = np.asarray(points, float) - centre
+    return np.degrees(np.arctan2(rel @ other, rel @ side)) % 360.0
+
+
 def azimuth_span_deg(points: np.ndarray, centre: np.ndarray, up: np.ndarray) -> float:
     """How many degrees of azimuth around ``centre`` (about the axis ``up``) the ``points``
     (N, 3) span: 360 minus the widest gap between neighbouring azimuths (0 for fewer than
     two points)."""
-    side, other = horizontal_axes(up)
-    rel = np.asarray(points, float) - centre
-    azimuth = np.sort(np.degrees(np.arctan2(rel @ other, rel @ side)) % 360.0)
+    azimuth = np.sort(azimuths_deg(points, centre, up))
     if len(azimuth) < 2:
         return 0.0
     gaps = np.diff(np.concatenate([azimuth, azimuth[:1] + 360.0]))

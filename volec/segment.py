@@ -43,7 +43,7 @@ from scipy import ndimage
 
 from volec.capture import Capture, Intrinsics, read_mask
 from volec.errors import VolecError
-from volec.geometry import azimuth_span_deg
+from volec.geometry import azimuth_span_deg, azimuths_deg, horizontal_axes
 from volec.progress import progress_over
 from volec.scale import fixation_of_poses
 
@@ -562,10 +562,7 @@ def outside_footprint_m(points: np.ndarray, geometry: SceneGeometry) -> np.ndarr
     less beyond a corner."""
     from scipy.spatial import ConvexHull
 
-    normal = geometry.normal
-    u = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
-    u /= np.linalg.norm(u)
-    basis = np.stack([u, np.cross(normal, u)], axis=1)  # (3, 2) along the plane
+    basis = np.stack(horizontal_axes(geometry.normal), axis=1)  # (3, 2) along the plane
     edges = ConvexHull(geometry.item_points @ basis).equations  # (E, 3): unit normal, offset
     flat = np.asarray(points) @ basis
     return (flat @ edges[:, :2].T + edges[:, 2]).max(axis=-1)
@@ -575,12 +572,7 @@ def _azimuth_cover(points: np.ndarray, geometry: SceneGeometry, bin_deg: float =
                    ) -> float:
     """The share of the directions round the item's centre (``bin_deg`` sectors, along the
     plane) in which some of ``points`` (N, 3) lie."""
-    rel = points - geometry.item_points.mean(axis=0)
-    rel = rel - np.outer(rel @ geometry.normal, geometry.normal)
-    if not len(rel):
-        return 0.0
-    u = rel[0] / (np.linalg.norm(rel[0]) or 1.0)
-    azimuth = np.degrees(np.arctan2(rel @ np.cross(geometry.normal, u), rel @ u)) % 360.0
+    azimuth = azimuths_deg(points, geometry.item_points.mean(axis=0), geometry.normal)
     return len(np.unique(np.floor(azimuth / bin_deg))) * bin_deg / 360.0
 
 
