@@ -590,7 +590,7 @@ def support_height_m(point_maps: list[np.ndarray], geometry: SceneGeometry,
     (its lower sides, which the sparse points may have missed, would otherwise pass for a
     plate; the table shows only where the item reaches past the plate's edge). Stereo at the
     segmentation's size measures heights to a few millimetres: the dark plate's top, 12.5 mm
-    above the table, came out at 15.8 mm."""
+    above the table, came out at 15.8 and 17.2 mm in two SfM runs."""
     from scipy.spatial import cKDTree
 
     plane_outside = outside_footprint_m(geometry.plane_points, geometry)
