@@ -357,9 +357,13 @@ def _poisson(xyz: np.ndarray, normals: np.ndarray, cfg: MeshingConfig):  # -> o3
         length = np.linalg.norm(np.asarray(pcd.normals), axis=1)
         pcd = pcd.select_by_index(np.flatnonzero(length > 0.1).tolist())
         pcd.normalize_normals()
+    # One thread: open3d's multi-threaded Poisson segfaults now and then (isl-org/Open3D#6828;
+    # it killed a notebook's kernel in CI) and differs in the last digits from run to run. On
+    # four benchmark clouds one thread took as long as two (2-6 s either way) and gave the
+    # same mesh every time.
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
         mesh, _ = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
-            pcd, depth=cfg.poisson_depth, scale=1.1, linear_fit=False)
+            pcd, depth=cfg.poisson_depth, scale=1.1, linear_fit=False, n_threads=1)
     return mesh, len(pcd.points)
 
 
