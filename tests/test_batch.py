@@ -56,3 +56,23 @@ def test_a_batch_into_a_capture_is_refused(small_capture, tmp_path, capsys):
     assert main(["batch", str(captures), "--out", str(captures / "cake" / "out")]) == 2
     assert "lie inside one another" in capsys.readouterr().err
     assert main(["batch", str(tmp_path / "nothing"), "--out", str(tmp_path / "o")]) == 2
+
+
+def test_local_workers_keep_the_adaptive_malloc_threshold(monkeypatch):
+    # Dask's nanny would set MALLOC_TRIM_THRESHOLD_=65536 in the workers (and in this
+    # process), which made dense stereo 2-2.5 times slower there; volec leaves it unset.
+    import os
+
+    from volec.batch import local_cluster
+
+    monkeypatch.setenv("MALLOC_TRIM_THRESHOLD_", "65536")  # as an earlier nanny left it
+    client, cluster = local_cluster(1)
+    try:
+        seen = client.run(lambda: os.environ.get("MALLOC_TRIM_THRESHOLD_"))
+        threads = client.run(lambda: os.environ.get("OMP_NUM_THREADS"))
+    finally:
+        client.close()
+        cluster.close()
+    assert list(seen.values()) == [None]
+    assert list(threads.values()) == ["1"]
+    assert "MALLOC_TRIM_THRESHOLD_" not in os.environ

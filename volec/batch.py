@@ -116,15 +116,29 @@ def estimate_one(capture_path: str, out_dir: str, cfg: BatchConfig, threads: int
     return row
 
 
+_DASK_TRIM_THRESHOLD = 65536
+"""The ``MALLOC_TRIM_THRESHOLD_`` Dask's nanny sets by default (see :func:`local_cluster`)."""
+
+
 def local_cluster(workers: int):  # -> (dask.distributed.Client, LocalCluster)
     """A local Dask cluster of ``workers`` spawned processes, each running one task at a
     time (torch, open3d and COLMAP hold thread pools that a fork would copy half-made). The
     workers are not daemons, so that a task may start processes of its own (rendering a
-    capture does)."""
+    capture does).
+
+    Dask's nanny would start each worker with ``MALLOC_TRIM_THRESHOLD_=65536`` (and write it
+    into this process's environment too, for every process started later): a fixed threshold
+    turns off glibc's adaptive one, so each of dense stereo's large temporary arrays is
+    mapped and unmapped afresh. It made the depth maps of one capture 2-2.5 times slower in a
+    worker (banana and pear: 61-69 s against 24-28 s in a plain process under the same load),
+    so it is left unset here."""
     import dask
     from dask.distributed import Client, LocalCluster
 
-    with dask.config.set({"distributed.worker.daemon": False}):
+    if os.environ.get("MALLOC_TRIM_THRESHOLD_") == str(_DASK_TRIM_THRESHOLD):
+        del os.environ["MALLOC_TRIM_THRESHOLD_"]  # put there by an earlier cluster's nanny
+    with dask.config.set({"distributed.worker.daemon": False,
+                          "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=logging.WARNING)
     return Client(cluster), cluster
