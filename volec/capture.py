@@ -82,10 +82,20 @@ class Intrinsics:
         pts = np.asarray(points_cam, float).reshape(-1, 3)
         z = pts[:, 2]
         front = z > 1e-9
-        uv = np.full((len(pts), 2), np.nan)
         if self.is_undistorted:
-            uv[front] = pts[front, :2] / z[front, None] * [self.fx, self.fy] + [self.cx, self.cy]
+            # Column by column, in place (x / z * f + c, as one expression would give): on
+            # 500,000 points several times faster than indexing the points in front and
+            # building (N, 2) temporaries; carving projects every grid point into 50 views.
+            uv = np.empty((len(pts), 2))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                for axis, (f, c) in enumerate(((self.fx, self.cx), (self.fy, self.cy))):
+                    column = uv[:, axis]
+                    np.divide(pts[:, axis], z, out=column)
+                    column *= f
+                    column += c
+            uv[~front] = np.nan
             return uv
+        uv = np.full((len(pts), 2), np.nan)
         import cv2
 
         dist = np.asarray(self.distortion, float)

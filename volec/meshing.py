@@ -207,32 +207,14 @@ def _project(view: SilhouetteView, points: np.ndarray) -> tuple[np.ndarray, np.n
     which of them fall in its image (N,) bool."""
     cam = points @ view.T_cam_from_world[:3, :3].T
     cam += view.T_cam_from_world[:3, 3]
+    uv = view.intrinsics.project(cam)  # NaN behind the camera: every test below is False
     h, w = view.signed_distance_px.shape
-    intr = view.intrinsics
-    if not intr.is_undistorted:
-        uv = intr.project(cam)
-        with np.errstate(invalid="ignore"):
-            ok = (np.isfinite(uv).all(axis=1) & (cam[:, 2] > 0) & (uv[:, 0] >= 0)
-                  & (uv[:, 0] <= w - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= h - 1))
-        return np.column_stack([uv, cam[:, 2]]), ok
-    # The pinhole case in place, column by column: the same numbers as Intrinsics.project,
-    # without its (N, 2) temporaries (carving projects every grid point into 50 views; this
-    # measured 5 times faster on 500,000 points).
-    z = cam[:, 2].copy()
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for axis, (f, c) in enumerate(((intr.fx, intr.cx), (intr.fy, intr.cy))):
-            column = cam[:, axis]
-            np.divide(column, z, out=column)
-            column *= f
-            column += c
-    cam[:, 2] = z
-    u, v = cam[:, 0], cam[:, 1]
-    ok = z > 1e-9
-    ok &= u >= 0
-    ok &= u <= w - 1
-    ok &= v >= 0
-    ok &= v <= h - 1
-    return cam, ok
+    with np.errstate(invalid="ignore"):
+        ok = uv[:, 0] >= 0
+        ok &= uv[:, 0] <= w - 1
+        ok &= uv[:, 1] >= 0
+        ok &= uv[:, 1] <= h - 1
+    return np.column_stack([uv, cam[:, 2]]), ok
 
 
 def mask_contradiction(view: SilhouetteView, food_xyz: np.ndarray, margin_px: float) -> float:
