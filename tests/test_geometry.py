@@ -75,3 +75,27 @@ def test_azimuth_span_of_cameras_on_arcs():
     full = np.radians(np.arange(0, 360, 10.0))
     ring = np.c_[np.cos(full), np.sin(full), np.zeros_like(full)]
     assert azimuth_span_deg(ring, np.zeros(3), np.array([0.0, 0.0, 1.0])) == pytest.approx(350)
+
+
+def test_ransac_plane_finds_a_tilted_plane_among_outliers_the_same_way_every_run():
+    from volec.geometry import ransac_plane
+
+    rng = np.random.default_rng(3)
+    normal = np.array([0.1, -0.2, 1.0]) / np.linalg.norm([0.1, -0.2, 1.0])
+    side = np.cross(normal, [1.0, 0.0, 0.0])
+    side /= np.linalg.norm(side)
+    other = np.cross(normal, side)
+    uv = rng.uniform(-0.1, 0.1, size=(30000, 2))
+    on_plane = (uv[:, :1] * side + uv[:, 1:] * other + 0.05 * normal
+                + rng.normal(scale=2e-4, size=(30000, 1)) * normal)
+    clutter = rng.uniform(-0.1, 0.1, size=(20000, 3)) + [0.0, 0.0, 0.1]
+    points = np.vstack([on_plane, clutter])
+    first = ransac_plane(points, 0.001, 500, seed=0)
+    found, offset, inliers = first
+    if found @ normal < 0:
+        found, offset = -found, -offset
+    assert np.degrees(np.arccos(min(1.0, found @ normal))) < 0.1
+    assert offset == pytest.approx(-0.05, abs=1e-4)  # the plane normal @ x = 0.05
+    assert np.isin(np.arange(30000), inliers).mean() > 0.99
+    again = ransac_plane(points, 0.001, 500, seed=0)
+    assert np.array_equal(again[0], first[0]) and np.array_equal(again[2], first[2])

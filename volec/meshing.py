@@ -41,6 +41,7 @@ import trimesh
 
 from volec.capture import Capture, Intrinsics
 from volec.errors import VolecError
+from volec.geometry import ransac_plane
 from volec.pointcloud import PointCloud
 from volec.segment import MaskSet
 
@@ -63,7 +64,7 @@ class SupportConfig:
     inlier_m: float = 0.001
     """RANSAC inlier distance, metres."""
     ransac_iterations: int = 2000
-    """RANSAC iterations (open3d ``segment_plane``)."""
+    """RANSAC iterations (:func:`volec.geometry.ransac_plane`)."""
     min_inliers: int = 200
     """Fewer inliers than this: no support plane found."""
     max_tilt_deg: float = 10.0
@@ -284,7 +285,6 @@ def fit_support_plane(scene: PointCloud, food: PointCloud, up: np.ndarray | None
     """The plane under ``food`` in ``scene`` (plate or table top), by RANSAC on the scene
     points around the food that are not food. ``up`` (the capture's up direction, if it states
     one) rejects planes that are not level. Raises :class:`MeshingError` when none is found."""
-    import open3d as o3d
     from scipy.spatial import cKDTree
 
     cfg = cfg or SupportConfig()
@@ -298,12 +298,8 @@ def fit_support_plane(scene: PointCloud, food: PointCloud, up: np.ndarray | None
             f"only {len(candidates)} scene points around the food are not food; a support "
             f"plane needs at least {cfg.min_inliers} (is the table or plate in the scene cloud?)"
         )
-    o3d.utility.random.seed(cfg.seed)
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(candidates))
-    plane, inliers = cloud.segment_plane(cfg.inlier_m, 3, cfg.ransac_iterations)
-    normal = np.asarray(plane[:3], float)
-    offset = float(plane[3]) / np.linalg.norm(normal)
-    normal = normal / np.linalg.norm(normal)
+    normal, offset, inliers = ransac_plane(candidates, cfg.inlier_m, cfg.ransac_iterations,
+                                           cfg.seed)
     if normal @ centre + offset < 0:
         normal, offset = -normal, -offset
     tilt = None

@@ -43,7 +43,7 @@ from scipy import ndimage
 
 from volec.capture import Capture, Intrinsics, read_mask
 from volec.errors import VolecError
-from volec.geometry import azimuth_span_deg, azimuths_deg, horizontal_axes
+from volec.geometry import azimuth_span_deg, azimuths_deg, horizontal_axes, ransac_plane
 from volec.progress import progress_over
 from volec.scale import fixation_of_poses
 
@@ -242,18 +242,12 @@ def _support_plane(points: np.ndarray, centres: np.ndarray, up: np.ndarray | Non
     """(normal towards the cameras, offset, inlier mask) of the dominant plane in ``points``
     that the cameras all look down on (each at least ``min_camera_elevation_deg`` above it)
     and, where the capture states its up direction, that is level; up to three tries."""
-    import open3d as o3d
-
-    o3d.utility.random.seed(seed)
     remaining = np.arange(len(points))
-    for _ in range(3):
+    for attempt in range(3):
         if len(remaining) < 50:
             break
-        pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points[remaining]))
-        plane, inliers = pcd.segment_plane(cfg.plane_inlier_m, 3, 2000)
-        normal = np.asarray(plane[:3], float)
-        scale = np.linalg.norm(normal)
-        normal, offset = normal / scale, float(plane[3]) / scale
+        normal, offset, inliers = ransac_plane(points[remaining], cfg.plane_inlier_m, 2000,
+                                               seed + attempt)
         heights = centres @ normal + offset
         if np.median(heights) < 0:
             normal, offset, heights = -normal, -offset, -heights
@@ -366,8 +360,6 @@ def _plane_under(local: np.ndarray, item_idx: np.ndarray, normal: np.ndarray, of
     """The plane the item rests on: the dominant plane found first may be the table under a
     plate; the points around the item's footprint (mostly the plate, when there is one) are
     fitted again, and their plane kept when it is parallel to the first and below the item."""
-    import open3d as o3d
-
     item = local[item_idx]
     others = np.setdiff1d(np.arange(len(local)), item_idx)
     reach = 1.3 * np.percentile(_footprint_distance(item, item, normal), 95) + 0.01
@@ -377,10 +369,7 @@ def _plane_under(local: np.ndarray, item_idx: np.ndarray, normal: np.ndarray, of
                   & (height[others] < lowest + 0.002) & (height[others] > -0.02)]
     if len(ring) < 50:
         return normal, offset
-    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(local[ring]))
-    plane, inliers = pcd.segment_plane(cfg.plane_inlier_m, 3, 1000)
-    n = np.asarray(plane[:3], float)
-    n, o = n / np.linalg.norm(n), float(plane[3]) / np.linalg.norm(n)
+    n, o, inliers = ransac_plane(local[ring], cfg.plane_inlier_m, 1000, seed=0)
     if n @ normal < 0:
         n, o = -n, -o
     if len(inliers) < 0.3 * len(ring) or np.degrees(np.arccos(min(1.0, n @ normal))) > 10:
