@@ -16,6 +16,7 @@ from volec.dense import (
     depth_normals,
     depth_range,
     estimate_depth,
+    frontal_or_filling,
     project,
     select_sources,
     voxel_merge,
@@ -166,3 +167,27 @@ def test_voxel_merge_averages_points_in_a_voxel():
     np.testing.assert_allclose(merged.xyz[order[0]], [0.0002] * 3, atol=1e-9)
     np.testing.assert_allclose(np.linalg.norm(merged.normals, axis=1), 1.0, atol=1e-9)
     np.testing.assert_array_equal(merged.rgb[order[0]], [100, 50, 25])
+
+
+def test_oblique_points_are_kept_only_where_no_frontal_point_covers_the_surface():
+    # A face seen frontally on x < 0 and only obliquely on x > 0 (a vertical wall towards the
+    # azimuths where the phone was held high), with oblique duplicates over the frontal part.
+    grid = np.stack(np.meshgrid(np.arange(-20, 21) * 5e-4, np.arange(-20, 21) * 5e-4),
+                    axis=-1).reshape(-1, 2)
+    wall = np.column_stack([grid, np.zeros(len(grid))])
+    frontal_part = wall[wall[:, 0] < 0]
+    xyz = np.vstack([frontal_part, wall + [0.0, 0.0, 2e-4], wall[:5] + [0.0, 0.0, 0.05]])
+    cosine = np.concatenate([np.full(len(frontal_part), 0.9), np.full(len(wall), 0.35),
+                             np.full(5, 0.35)])
+    cfg = DenseConfig(min_view_cosine=0.5, oblique_gap_m=0.0015)
+    keep = frontal_or_filling(xyz, cosine, cfg)
+    assert keep[:len(frontal_part)].all()
+    oblique_x = wall[:, 0]
+    kept_oblique = keep[len(frontal_part):len(frontal_part) + len(wall)]
+    # over the frontal part (more than the gap from its edge) the oblique copy goes ...
+    assert not kept_oblique[oblique_x < -0.0016].any()
+    # ... and beyond it, where nothing frontal is near, it fills the hole
+    assert kept_oblique[oblique_x > 0.0016].all()
+    assert keep[-5:].all()  # far from the wall: nothing covers it
+    # without any frontal point every oblique one is kept
+    assert frontal_or_filling(xyz[len(frontal_part):], cosine[len(frontal_part):], cfg).all()
