@@ -48,8 +48,8 @@ def item_rows(item: str, base: EstimateConfig) -> list[dict]:
                "food_points": len(stages.masked.cloud.xyz)}
         for tag, net in (("no_completion", None), ("completion", model)):
             variant = replace(cfg, use_completion=net is not None, completion_method="network")
-            ml = estimate_from_stages(capture, stages, net, variant, silhouettes, scale).food
-            row[f"{tag}_error_pct"] = 100 * (ml.volume_ml - truth_ml) / truth_ml
+            food = estimate_from_stages(capture, stages, net, variant, silhouettes, scale).food
+            row[f"{tag}_error_pct"] = 100 * (food.volume_ml - truth_ml) / truth_ml
         rows.append(row)
     return rows
 
@@ -61,9 +61,11 @@ def main() -> None:
     table = pd.DataFrame([r for item in args.items for r in item_rows(item, EstimateConfig())])
     write_table(table, figures_dir() / "oblique_fusion", float_digits=2)
     print(table.to_string(index=False))
-    print(table.groupby("min_oblique_cosine")[["dense_s", "no_completion_error_pct",
-                                               "completion_error_pct"]]
-          .agg(lambda s: s.abs().mean() if s.name != "dense_s" else s.sum()))
+    by_setting = table.groupby("min_oblique_cosine")
+    print("dense seconds, summed:", by_setting["dense_s"].sum().to_dict())
+    for tag in ("no_completion", "completion"):
+        print(f"{tag} MAPE %:", by_setting[f"{tag}_error_pct"].apply(lambda e: e.abs().mean())
+              .round(2).to_dict())
 
 
 if __name__ == "__main__":

@@ -117,8 +117,12 @@ class DenseConfig:
     between the surface normal and the direction to the camera) is oblique: a window on a
     grazing, curving surface matches it too far (benchmark banana, exact poses, phone look:
     raw depths 1.2 mm too far, normal to the surface, under cos 0.5; 0.4 mm at 0.5-0.7; 0.04
-    mm above 0.85). Oblique depths are kept only where no view saw that surface more frontally
-    (see ``oblique_gap_m``)."""
+    mm above 0.85), and on an orbit the same surface is seen face-on from other frames. On
+    five phone-look items (SfM poses) 0.5 moved the mesh's aligned median signed distance
+    towards zero on four (banana -0.25 to -0.15 mm, pear -0.19 to -0.09, capsicum -0.12 to
+    -0.01) and the mean volume error from 2.5 to 2.2 %; on the croissant, whose grazing sides
+    bound the gap under it, the overestimate grew (+2.1 to +3.7 %). Oblique depths are dropped
+    unless ``min_oblique_cosine`` is lower (then they may fill holes); 0 keeps all."""
     min_oblique_cosine: float = 0.5
     """Depths seen more obliquely than this are dropped everywhere (the rims of the
     silhouette, where windows straddle surfaces at very different depths). Equal to
@@ -704,14 +708,12 @@ def frontal_or_filling(xyz: np.ndarray, cosine: np.ndarray, cfg: DenseConfig) ->
     from scipy.spatial import cKDTree
 
     frontal = cosine >= cfg.min_view_cosine
+    if frontal.all() or not frontal.any():
+        return np.ones(len(xyz), bool)
     keep = frontal.copy()
     oblique = np.flatnonzero(~frontal)
-    if len(oblique) and frontal.any():
-        gap = cKDTree(xyz[frontal]).query(xyz[oblique],
-                                          distance_upper_bound=cfg.oblique_gap_m)[0]
-        keep[oblique[np.isinf(gap)]] = True
-    else:
-        keep[oblique] = True
+    gap = cKDTree(xyz[frontal]).query(xyz[oblique], distance_upper_bound=cfg.oblique_gap_m)[0]
+    keep[oblique[np.isinf(gap)]] = True
     return keep
 
 
