@@ -5,7 +5,8 @@ and an :class:`SfmConfig`. Out: an :class:`SfmResult` with refined metric poses 
 capture's world frame, the sparse metric point cloud, which frames registered, the
 world-from-model similarity, and a summary (counts, reprojection error, residuals, timings).
 On disk (:func:`run_sfm` with a work folder): ``sfm/database.db``, ``sfm/pairs.txt``, the
-metric COLMAP model in ``sfm/model`` (openable in COLMAP's GUI), ``sfm/points.ply`` and
+metric COLMAP model in ``sfm/model`` (openable in COLMAP's GUI), ``sfm/points.ply`` (to look
+at), ``sfm/points.npz`` (the sparse points exactly as the result holds them) and
 ``sfm/summary.json``.
 
 Why the alignment is done this way: AR poses are metric but drift; COLMAP's are consistent
@@ -40,7 +41,7 @@ log = logging.getLogger(__name__)
 
 
 #: The files of a finished SfM stage (besides ``model/``) that ``summary.json`` lists.
-SFM_FILES = ("T_world_from_cam.npy", "registered.npy", "points.ply")
+SFM_FILES = ("T_world_from_cam.npy", "registered.npy", "points.npz", "points.ply")
 
 
 class SfmError(VolecError):
@@ -509,6 +510,11 @@ def _run_sfm_in(capture: Capture, sfm_dir: Path, cfg: SfmConfig,
     shutil.rmtree(sfm_dir / "colmap", ignore_errors=True)
     np.save(sfm_dir / "T_world_from_cam.npy", result.T_world_from_cam)
     np.save(sfm_dir / "registered.npy", result.registered)
+    # The points as the result holds them (float64): COLMAP's PLY rounds them to float32, and
+    # dense stereo's depth range from the rounded points (60 nm off) gave another cloud (the
+    # apple: 76,138 points instead of 76,124), so a stage resumed from disk differed from the
+    # run that wrote it.
+    np.savez(sfm_dir / "points.npz", xyz=result.points_xyz, rgb=result.points_rgb)
     if provenance is not None:
         result.summary["provenance"] = provenance
     result.summary["files"] = {name: file_digest(sfm_dir / name) for name in SFM_FILES}
@@ -781,17 +787,16 @@ def align_to_ar(capture: Capture, rec: Any, cfg: SfmConfig) -> SfmResult:
 
 def load_sfm(work_dir: Path) -> SfmResult:
     """Read a finished SfM stage back from ``work_dir/sfm``."""
-    import trimesh
-
     sfm_dir = Path(work_dir) / "sfm"
     summary = json.loads((sfm_dir / "summary.json").read_text())
-    cloud = trimesh.load(sfm_dir / "points.ply")
+    with np.load(sfm_dir / "points.npz") as points:
+        xyz, rgb = points["xyz"], points["rgb"]
     return SfmResult(
         frame_names=list(summary["frame_names"]),
         T_world_from_cam=np.load(sfm_dir / "T_world_from_cam.npy"),
         registered=np.load(sfm_dir / "registered.npy"),
-        points_xyz=np.asarray(cloud.vertices, float),
-        points_rgb=np.asarray(cloud.colors, np.uint8)[:, :3],
+        points_xyz=xyz,
+        points_rgb=rgb,
         world_from_model=np.asarray(summary["world_from_model"]),
         summary=summary,
     )
