@@ -132,9 +132,11 @@ class DenseConfig:
     completion from 2.46 to 2.37 %, but with network completion from 2.24 to 2.34 % (capsicum
     -1.12 to -2.27 %, lemon +1.79 to +2.17; pear -1.38 to -1.10, yellow cane +2.94 to +2.76),
     at the same dense time (247 s against 242 s over the ten), so it is not the default. The
-    differences are within the run-to-run spread: the pear at 0.5, stages recomputed from the
-    same SfM stage, gave 77,284 then 77,251 food points and a completion error of -1.38 then
-    -0.88 % (``benchmarks/bench_oblique_fusion.py``)."""
+    differences were within the run-to-run spread of the time: the pear at 0.5, stages
+    recomputed from the same SfM stage, gave 77,284 then 77,251 food points and a completion
+    error of -1.38 then -0.88 % (``benchmarks/bench_oblique_fusion.py``). That spread came from
+    the reloaded SfM points, rounded to float32, and from multi-threaded SfM; both are fixed,
+    so this is worth measuring again."""
     oblique_gap_m: float = 0.0015
     """An oblique depth is kept where no frontal point (``min_view_cosine`` or better, from any
     view) lies within this distance: there it fills a hole, where it would otherwise be
