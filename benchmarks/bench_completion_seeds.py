@@ -5,58 +5,54 @@ points for the ``cpu`` checkpoint), so another seed predicts other points.
 Usage: .venv/bin/python benchmarks/bench_completion_seeds.py [--scenario full_orbit]
        [--seeds 3] ITEM...
 
-Reads the stages of ``data/bench-sfm/ITEM-SCENARIO`` (run ``bench_volume.py`` first; a stage
-made by other code or settings is refused, never reused), meshes the food without completion
-and with network completion once per seed, and writes figures/completion_seeds.{csv,md}:
-per item the volume error without completion and per seed, and the spread over the seeds.
+Uses the captures and stages of ``data/bench-sfm`` as ``bench_volume.py`` does (stages made by
+other code or settings are recomputed, never reused), runs the estimate that ``volec
+estimate`` runs (:func:`volec.estimate.estimate_from_stages`) without completion and with
+network completion once per seed, and writes figures/completion_seeds.{csv,md}: per item the
+volume error without completion and per seed, and the spread over the seeds.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 
-from volec.capture import read_transforms_json
 from volec.estimate import (
     EstimateConfig,
-    capture_up,
-    food_mesh,
+    estimate_from_stages,
     food_silhouettes,
     load_completion_model,
-    support_scene,
 )
-from volec.meshing import consistent_views
+from volec.experiments import Scenario, ensure_capture, scenario_capture, scenarios
 from volec.paths import experiment_dir, figures_dir
 from volec.pipeline import run_stages
+from volec.synth import load_truth
 from volec.tables import write_table
 
 
-def item_row(item: str, scenario: str, seeds: int) -> dict[str, float | str]:
+def item_row(item: str, scenario: Scenario, seeds: int) -> dict[str, float | str]:
     """Volume errors (%) of ``item`` without completion and with each seed."""
-    root = experiment_dir(False) / f"{item}-{scenario}"
-    truth_ml = json.loads((root / "ground_truth" / "truth.json").read_text())["volume_ml"]
-    capture = read_transforms_json(root / "capture")
+    out = ensure_capture(experiment_dir(False), item, scenario)
+    capture = scenario_capture(out, scenario)
     cfg = EstimateConfig()
-    stages = run_stages(capture, root / "work", cfg.sfm, cfg.dense, cfg.masking,
-                        progress=False)
-    views, _ = consistent_views(food_silhouettes(capture, stages, cfg),
-                                stages.masked.cloud.xyz, cfg.meshing)
-    scene, up = support_scene(stages, cfg.support), capture_up(capture)
+    stages = run_stages(capture, scenario.work(out), cfg.sfm, cfg.dense, cfg.masking,
+                        stale="recompute", progress=False)
+    views = food_silhouettes(capture, stages, cfg)
+    truth_ml = load_truth(out)["volume_ml"]  # scoring only
+
+    def error_pct(variant: EstimateConfig, model) -> float:
+        est = estimate_from_stages(capture, stages, model, variant, views)
+        return (est.food.volume_ml / truth_ml - 1) * 100
+
+    row: dict[str, float | str] = {
+        "item": item, "without_pct": error_pct(replace(cfg, use_completion=False), None)}
     model = load_completion_model(cfg)
-    without = food_mesh(stages.masked.cloud, scene, up, None,
-                        replace(cfg, use_completion=False), views)
-    row: dict[str, float | str] = {"item": item,
-                                   "without_pct": (without.volume_ml / truth_ml - 1) * 100}
-    errors = []
-    for seed in range(seeds):
-        seeded = replace(cfg, completion=replace(cfg.completion, seed=seed))
-        food = food_mesh(stages.masked.cloud, scene, up, model, seeded, views)
-        errors.append((food.volume_ml / truth_ml - 1) * 100)
-        row[f"seed{seed}_pct"] = errors[-1]
+    errors = [error_pct(replace(cfg, completion=replace(cfg.completion, seed=seed)), model)
+              for seed in range(seeds)]
+    row.update({f"seed{seed}_pct": e for seed, e in enumerate(errors)})
     row["spread_pct"] = float(np.ptp(errors))
     return row
 
@@ -67,7 +63,8 @@ def main() -> None:
     parser.add_argument("--scenario", default="full_orbit")
     parser.add_argument("--seeds", type=int, default=3)
     args = parser.parse_args()
-    table = pd.DataFrame([item_row(item, args.scenario, args.seeds) for item in args.items])
+    scenario = scenarios(False)[args.scenario]
+    table = pd.DataFrame([item_row(item, scenario, args.seeds) for item in args.items])
     write_table(table, figures_dir() / "completion_seeds", float_digits=2)
     print(table.to_string(index=False, float_format=lambda x: f"{x:+.2f}"))
     print(f"mean spread over {args.seeds} seeds: {table['spread_pct'].mean():.2f} % "

@@ -135,8 +135,8 @@ class DenseConfig:
     differences were within the run-to-run spread of the time: the pear at 0.5, stages
     recomputed from the same SfM stage, gave 77,284 then 77,251 food points and a completion
     error of -1.38 then -0.88 % (``benchmarks/bench_oblique_fusion.py``). That spread came from
-    the reloaded SfM points, rounded to float32, and from multi-threaded SfM; both are fixed,
-    so this is worth measuring again."""
+    the reloaded SfM points, rounded to float32 (fixed: ``sfm/points.npz``), so this is worth
+    measuring again."""
     oblique_gap_m: float = 0.0015
     """An oblique depth is kept where no frontal point (``min_view_cosine`` or better, from any
     view) lies within this distance: there it fills a hole, where it would otherwise be
