@@ -134,3 +134,22 @@ def test_the_visual_hull_holds_the_sphere_and_is_closed():
     assert hull.contains(inner).all()
     # and it is cut at the table
     assert hull.bounds[0, 2] > -SpaceConfig().pitch_m
+
+
+def test_a_patch_stereo_missed_leaves_the_food_behind_it_unknown_not_empty():
+    # The cameras saw the sphere there (the pixels are inside its masks) but dense stereo
+    # found no point: the space behind that patch was not seen through, whatever lies
+    # beyond it in the picture.
+    cloud, views = _scene(360.0)
+    patch_centre = np.array([0.0, np.cos(np.radians(30)), np.sin(np.radians(30))])
+    normals = cloud.normals
+    missed = normals @ patch_centre > np.cos(np.radians(35))
+    holed = cloud.subset(~missed)
+    space = observed_space(holed, views, TABLE, SpaceConfig())
+    points = space.points()
+    states = space.state.reshape(-1)
+    radius = np.linalg.norm(points - CENTRE, axis=1)
+    behind_patch = (radius < 0.85 * R) & ((points - CENTRE) @ patch_centre > 0.5 * R)
+    assert behind_patch.sum() > 50
+    assert not (states[behind_patch] == EMPTY).any()
+    assert (states[radius < 0.85 * R] == EMPTY).mean() == 0

@@ -12,6 +12,9 @@ taken as empty, and with all unknown space taken as food.
   surface they saw there (the observed cloud drawn into each view as a depth map, only the
   points facing that camera, so the far side does not show through gaps), or just in front of
   the observed surface (within ``surface_reach_m`` of observed points, on their outer side).
+  Where a view's food mask holds a pixel but no observed point fell there (a patch dense
+  stereo missed, a grazing rim), the camera saw food at a depth nobody measured: nothing
+  along that ray counts as seen through.
   Below the support plane is empty too.
 - **Food**: space enclosed by what was seen: just behind the observed surface, or a point
   from which a ray in each grid direction (26, or with a support plane those not pointing
@@ -33,6 +36,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
+from volec.capture import Intrinsics
 from volec.meshing import SilhouetteView, SupportPlane, silhouette_field
 from volec.pointcloud import PointCloud
 
@@ -134,10 +138,14 @@ def grid_frame(cloud: PointCloud, support: SupportPlane | None, cfg: SpaceConfig
     return lower, (int(shape[0]), int(shape[1]), int(shape[2]))
 
 
-def observed_depth(cloud: PointCloud, view: SilhouetteView, scale: float) -> np.ndarray:
-    """(h, w) the depth of the observed surface in ``view`` at ``scale`` of its resolution
-    (inf where no point fell): the nearest of the points facing the camera, widened by a
-    3x3 minimum so that the gaps between points do not let the far side through."""
+def observed_depth(cloud: PointCloud, view: SilhouetteView, scale: float,
+                   mask_margin_px: float = 1.0) -> np.ndarray:
+    """(h, w) the depth of the observed surface in ``view`` at ``scale`` of its resolution:
+    the nearest of the points facing the camera, widened by a 3x3 minimum so that the gaps
+    between points do not let the far side through. Where no point fell the depth is inf
+    (nothing stops the view there) outside the view's food mask, and -inf inside it (grown
+    by ``mask_margin_px``): the camera saw food there at a depth nobody measured (a patch
+    dense stereo missed, a grazing rim), so nothing along that ray was seen through."""
     from scipy import ndimage
 
     T = view.T_cam_from_world
@@ -157,7 +165,19 @@ def observed_depth(cloud: PointCloud, view: SilhouetteView, scale: float) -> np.
     inside = (u >= 0) & (u < dw) & (v >= 0) & (v < dh)
     depth = np.full((dh, dw), np.inf)
     np.minimum.at(depth, (v[inside], u[inside]), z[inside])
-    return ndimage.minimum_filter(depth, size=3, mode="nearest")
+    depth = ndimage.minimum_filter(depth, size=3, mode="nearest")
+    depth[np.isinf(depth) & _food_pixels(view, small, mask_margin_px)] = -np.inf
+    return depth
+
+
+def _food_pixels(view: SilhouetteView, small: Intrinsics, margin_px: float) -> np.ndarray:
+    """(h, w) True where the pixel centres of ``small`` (a scaled copy of ``view``'s
+    intrinsics) fall inside the view's food mask grown by ``margin_px``."""
+    h, w = view.signed_distance_px.shape
+    factor = view.intrinsics.width / small.width
+    rows = np.clip(np.round((np.arange(small.height) + 0.5) * factor - 0.5), 0, h - 1)
+    cols = np.clip(np.round((np.arange(small.width) + 0.5) * factor - 0.5), 0, w - 1)
+    return view.signed_distance_px[np.ix_(rows.astype(int), cols.astype(int))] <= margin_px
 
 
 def seen_through(points: np.ndarray, cloud: PointCloud, views: list[SilhouetteView],
@@ -165,7 +185,7 @@ def seen_through(points: np.ndarray, cloud: PointCloud, views: list[SilhouetteVi
     """(N,) how many views saw the observed surface beyond each point (it is empty)."""
     count = np.zeros(len(points), np.int32)
     for view in views:
-        depth = observed_depth(cloud, view, cfg.depth_scale)
+        depth = observed_depth(cloud, view, cfg.depth_scale, cfg.silhouette_margin_px)
         small = view.intrinsics.scaled(cfg.depth_scale)
         T = view.T_cam_from_world
         cam = points @ T[:3, :3].T + T[:3, 3]
