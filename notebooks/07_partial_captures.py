@@ -41,6 +41,8 @@
 # - **VolE-style**: the masked dense cloud closed by Poisson, the support plane and the masks'
 #   hull, no completion;
 # - **mirror completion**: the masked cloud plus its reflection in its best mirror plane;
+# - **rotation completion**: the masked cloud plus its half-turn about its best vertical axis,
+#   kept only where no camera constrained the space (the far side of a half orbit);
 # - **network completion**: the masked cloud plus the SymmCompletion network's points where
 #   nothing was observed; this is volec's default.
 #

@@ -137,3 +137,38 @@ def test_volec_estimate_segments_the_food_itself(small_capture, small_result, tm
     assert np.median(ious) > 0.95
     truth = load_ground_truth_mesh(small_capture).volume * 1e6
     assert 0.7 * truth < result["volume_ml"] < 1.5 * truth
+
+
+def test_auto_completion_turns_a_symmetric_item_then_asks_the_network():
+    from tests.test_space import TABLE, _scene
+    from volec.estimate import (
+        EstimateConfig,
+        completed_cloud,
+        completion_method_used,
+        load_completion_model,
+    )
+    from volec.pointcloud import PointCloud
+    from volec.space import SpaceConfig, observed_space
+
+    auto = EstimateConfig(completion_method="auto")
+    cloud, views = _scene(180.0)  # a sphere filmed over half an orbit: symmetric
+    space = observed_space(cloud, views, TABLE, SpaceConfig())
+    done = completed_cloud(cloud, TABLE, None, None, space, auto)
+    assert done is not None and done.summary["symmetric"] and done.summary["predicted_kept"]
+    assert completion_method_used(done, auto) == "rotation"  # no network to ask
+    both = completed_cloud(cloud, TABLE, None, load_completion_model(auto), space, auto)
+    assert completion_method_used(both, auto) == "rotation+network"
+    turned = both.summary["predicted_kept"] - both.summary["network_kept"]
+    assert turned == done.summary["predicted_kept"]  # the same turn, then the network's
+    assert len(both.cloud) == len(cloud) + both.summary["predicted_kept"]
+    assert len(both.predicted_xyz) == both.summary["predicted_kept"]
+    # a cone lying down is not: the network decides (none without its model)
+    rng = np.random.default_rng(2)
+    x, theta = rng.uniform(-0.04, 0.04, 5000), rng.uniform(0, 2 * np.pi, 5000)
+    radius = 0.021 - 0.009 * x / 0.04
+    cone = PointCloud(np.stack([x, radius * np.cos(theta), 0.03 + radius * np.sin(theta)], 1))
+    assert completed_cloud(cone, TABLE, None, None, None, auto) is None
+    network = completed_cloud(cone, TABLE, None, load_completion_model(auto), None, auto)
+    assert len(network.cloud) == len(cone) + network.summary["predicted_kept"]
+    assert network is not None and completion_method_used(network, auto) == "network"
+    assert not network.summary["rotation"]["symmetric"]

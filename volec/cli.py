@@ -418,9 +418,13 @@ def build_parser() -> argparse.ArgumentParser:
     estimate.add_argument("--out", required=True, type=Path, help="output folder")
     estimate.add_argument("--no-completion", action="store_true",
                           help="mesh the masked cloud as it is (the VolE-style baseline)")
-    estimate.add_argument("--completion", default="network", choices=["network", "mirror"],
+    estimate.add_argument("--completion", default="network",
+                          choices=["network", "mirror", "rotation", "auto"],
                           help="what completes the masked cloud: the shipped network "
-                          "(default) or its reflection in its best mirror plane")
+                          "(default), its reflection in its best mirror plane, its "
+                          "half-turn about its best vertical axis where nobody saw, or "
+                          "(auto) the half-turn where the food is symmetric under it, else "
+                          "the network")
     estimate.add_argument("--preset", default="default",
                           choices=["default", "fast", "tolerant_masks"],
                           help="fast: coarser dense stereo and meshing; tolerant_masks: for "

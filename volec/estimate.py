@@ -40,9 +40,11 @@ from volec import __version__
 from volec.capture import Capture
 from volec.completion.complete import (
     SHIPPED_CHECKPOINT,
+    Completion,
     CompletionConfig,
     complete_cloud,
     mirror_completion,
+    rotation_completion,
 )
 from volec.completion.model import SymmCompletion
 from volec.dense import PRESETS as DENSE_PRESETS
@@ -83,7 +85,7 @@ from volec.report import ReportScene, bounds_sentence, write_report_html
 from volec.scale import ScaleCheck, ScaleConfig, require_metric
 from volec.segment import MaskSet, SegmentConfig, given_masks
 from volec.sfm import SfmConfig
-from volec.space import SpaceConfig, VolumeBounds, observed_space, volume_bounds
+from volec.space import SpaceConfig, SpaceGrid, VolumeBounds, observed_space, volume_bounds
 from volec.trust import Reason, TrustConfig, TrustFacts, assess
 from volec.volume import volume_ml
 
@@ -99,10 +101,13 @@ class EstimateConfig:
     use_completion: bool = True
     """Complete the masked cloud before meshing (False: the VolE-style baseline, where only
     the support plane and Poisson close the unseen underside)."""
-    completion_method: Literal["network", "mirror"] = "network"
+    completion_method: Literal["network", "mirror", "rotation", "auto"] = "network"
     """``network``: the trained SymmCompletion network; ``mirror``: the cloud's reflection in
     its best mirror plane (the non-learned baseline, :mod:`volec.completion.mirror`), merged
-    the same way."""
+    the same way; ``rotation``: its half-turn about its best vertical axis, kept only where
+    no camera constrained the space (:mod:`volec.completion.rotation`); ``auto``: that
+    half-turn where the masked cloud is symmetric under it, then the network for what is still
+    missing (the network alone where it is not)."""
     checkpoint: str = ""
     """Completion checkpoint; empty: the one shipped with volec."""
     keyframes: KeyframeConfig = field(default_factory=KeyframeConfig)
@@ -241,38 +246,101 @@ def support_scene(stages: StageResults, cfg: SupportConfig) -> PointCloud:
     return PointCloud(np.vstack([stages.dense.cloud.xyz, stages.sfm.points_xyz]))
 
 
-def food_mesh(masked: PointCloud, scene: PointCloud, up: np.ndarray | None,
-              model: SymmCompletion | None, cfg: EstimateConfig,
-              silhouettes: list[SilhouetteView] | None = None) -> FoodMesh:
-    """Support plane, completion (when ``model`` is given) and a closed mesh of the food,
-    carved by ``silhouettes`` when given, with its volume. A missing support plane is not an
-    error: the mesh is then closed by Poisson alone, and :func:`estimate_from_stages` flags it."""
-    start = time.perf_counter()
-    support, problem = None, None
+def find_support(masked: PointCloud, scene: PointCloud, up: np.ndarray | None,
+                 cfg: SupportConfig) -> tuple[SupportPlane | None, str | None]:
+    """(the support plane under the ``masked`` food in ``scene``, None) or, where none is
+    found, (None, why): not an error, the mesh is then closed by Poisson alone and
+    :func:`estimate_from_stages` flags it."""
     try:
-        support = fit_support_plane(scene, masked, up, cfg.support)
+        return fit_support_plane(scene, masked, up, cfg), None
     except MeshingError as e:
-        problem = str(e)
+        return None, str(e)
+
+
+def uses_network(cfg: EstimateConfig) -> bool:
+    """True when ``cfg``'s completion may call the network (so its model is loaded)."""
+    return cfg.use_completion and cfg.completion_method in ("network", "auto")
+
+
+def completed_cloud(masked: PointCloud, support: SupportPlane | None, up: np.ndarray | None,
+                    model: SymmCompletion | None, space: SpaceGrid | None, cfg: EstimateConfig
+                    ) -> Completion | None:
+    """The masked cloud completed as ``cfg.completion_method`` says, or None without
+    completion (also when the network is asked for and ``model`` is None). Mirror and rotation
+    work about the support normal, else ``up``; rotation keeps what lands in ``space``'s
+    unknown part. ``auto`` turns the cloud where it is symmetric under the half-turn, then
+    lets the network complete what is still missing (:func:`symmetry_then_network`)."""
+    method = cfg.completion_method
+    if not cfg.use_completion:
+        return None
+    plane_up = None if support is None and up is None else np.asarray(
+        support.normal if support is not None else up, float)
+    if method == "mirror":
+        return mirror_completion(masked, plane_up, cfg.completion)
+    if method == "rotation":
+        if plane_up is None:
+            raise VolecError("rotation completion needs a support plane or the capture's up "
+                             "direction (world_up)")
+        return rotation_completion(masked, plane_up, space, cfg.completion)
+    if method == "auto" and plane_up is not None:
+        return symmetry_then_network(masked, plane_up, model, space, cfg.completion)
+    return None if model is None else complete_cloud(masked, model, cfg.completion)
+
+
+def symmetry_then_network(masked: PointCloud, up: np.ndarray, model: SymmCompletion | None,
+                          space: SpaceGrid | None, cfg: CompletionConfig) -> Completion | None:
+    """The masked cloud plus its half-turn about the vertical ``up`` where the turn maps it
+    onto itself (:func:`volec.completion.complete.rotation_completion`), then the network's
+    points farther than ``cfg.missing_only_gap_m`` from all of that (none without ``model``).
+    The summary's ``rotation`` holds the turn's (its ``symmetric`` says whether it was used);
+    ``predicted_kept`` counts both priors' points."""
+    turned = rotation_completion(masked, up, space, cfg)
+    if model is None:
+        return turned if turned.summary["symmetric"] else None
+    start = turned.cloud if turned.summary["symmetric"] else masked
+    network = complete_cloud(start, model, cfg)
+    added = len(start) - len(masked)
+    summary = {**network.summary, "partial_points": len(masked),
+               "predicted_kept": added + network.summary["predicted_kept"],
+               "network_kept": network.summary["predicted_kept"], "rotation": turned.summary}
+    return Completion(network.cloud, np.concatenate([turned.predicted_xyz[:added],
+                                                     network.predicted_xyz]),
+                      network.normalization, summary)
+
+
+def completion_method_used(completion: Completion, cfg: EstimateConfig) -> str:
+    """Which prior made ``completion`` under ``cfg``: ``network``, ``mirror``, ``rotation``
+    or (``auto`` on a symmetric cloud) ``rotation+network``."""
+    if cfg.completion_method in ("mirror", "rotation"):
+        return cfg.completion_method
+    turn = completion.summary.get("rotation")
+    if turn is None:
+        return "rotation" if completion.summary.get("symmetric") else "network"
+    return "rotation+network" if turn["symmetric"] else "network"
+
+
+def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None],
+              up: np.ndarray | None, model: SymmCompletion | None, cfg: EstimateConfig,
+              silhouettes: list[SilhouetteView] | None = None,
+              space: SpaceGrid | None = None) -> FoodMesh:
+    """Completion (see :func:`completed_cloud`) and a closed mesh of the food on the
+    ``support`` plane (:func:`find_support`), carved by ``silhouettes`` when given, with its
+    volume."""
+    start = time.perf_counter()
+    plane, problem = support
     cloud, summary = masked, None
-    completion_s = 0.0
-    completed = model is not None or (cfg.use_completion and cfg.completion_method == "mirror")
-    if completed:
-        t = time.perf_counter()
-        if model is not None:
-            completion = complete_cloud(masked, model, cfg.completion)
-        else:
-            plane_up = support.normal if support is not None else up
-            completion = mirror_completion(masked, plane_up, cfg.completion)
-        method = "network" if model is not None else "mirror"
-        cloud, summary = completion.cloud, {"method": method, **completion.summary}
-        completion_s = time.perf_counter() - t
-    mesh = mesh_cloud(cloud, support, cfg.meshing, silhouettes)
+    completion = completed_cloud(masked, plane, up, model, space, cfg)
+    completion_s = time.perf_counter() - start
+    if completion is not None:
+        cloud = completion.cloud
+        summary = {"method": completion_method_used(completion, cfg), **completion.summary}
+    mesh = mesh_cloud(cloud, plane, cfg.meshing, silhouettes)
     volume = volume_ml(mesh.mesh)
     share = None
-    if completed:
+    if completion is not None:
         share = completion_share(mesh.mesh, cloud, len(masked), cfg.completion_share_pitch_m)
     meshing_s = time.perf_counter() - start - completion_s
-    return FoodMesh(cloud, mesh, volume, support, problem, summary, share,
+    return FoodMesh(cloud, mesh, volume, plane, problem, summary, share,
                     {"completion_s": round(completion_s, 2), "meshing_s": round(meshing_s, 2)})
 
 
@@ -310,13 +378,17 @@ def _notes(capture: Capture, stages: StageResults, food: FoodMesh, scale: ScaleC
     return notes
 
 
-def estimate_bounds(food: FoodMesh, stages: StageResults,
-                    silhouettes: list[SilhouetteView] | None, cfg: SpaceConfig) -> VolumeBounds:
-    """The bounds of ``food``'s volume: what the cameras saw empty (through the scene cloud's
-    depth and the silhouettes), what lies behind what they saw, and what nobody constrained
-    (:func:`volec.space.observed_space`)."""
-    space = observed_space(stages.masked.cloud, silhouettes or [], food.support, cfg,
-                           scene=stages.dense.cloud)
+def stage_space(stages: StageResults, silhouettes: list[SilhouetteView] | None,
+                support: SupportPlane | None, cfg: SpaceConfig) -> SpaceGrid:
+    """The space around the masked food of ``stages``: what the cameras saw empty (through
+    the scene cloud's depth and the silhouettes), what lies behind what they saw, and what
+    nobody constrained (:func:`volec.space.observed_space`)."""
+    return observed_space(stages.masked.cloud, silhouettes or [], support, cfg,
+                          scene=stages.dense.cloud)
+
+
+def estimate_bounds(food: FoodMesh, space: SpaceGrid) -> VolumeBounds:
+    """The bounds of ``food``'s volume from the ``space`` around it."""
     inside = food.mesh.mesh.contains(space.points())
     return volume_bounds(space, inside, food.volume_ml)
 
@@ -333,16 +405,20 @@ def estimate_from_stages(capture: Capture, stages: StageResults, model: SymmComp
     if silhouettes is not None:
         silhouettes, left_out = consistent_views(silhouettes, stages.masked.cloud.xyz,
                                                  cfg.meshing)
-    food = food_mesh(stages.masked.cloud, support_scene(stages, cfg.support), up, model, cfg,
-                     silhouettes)
+    support = find_support(stages.masked.cloud, support_scene(stages, cfg.support), up,
+                           cfg.support)
+    start = time.perf_counter()
+    space = stage_space(stages, silhouettes, support[0], cfg.space)
+    space_s = time.perf_counter() - start
+    food = food_mesh(stages.masked.cloud, support, up, model, cfg, silhouettes, space)
     view_up = (np.asarray(food.support.normal) if food.support is not None
                else up if up is not None else np.array([0.0, 0.0, 1.0]))
     sfm = stages.sfm
     centres = sfm.T_world_from_cam[sfm.registered][:, :3, 3]
     coverage = azimuth_span_deg(centres, food.mesh.mesh.centroid, view_up)
     start = time.perf_counter()
-    bounds = estimate_bounds(food, stages, silhouettes, cfg.space)
-    bounds_s = round(time.perf_counter() - start, 2)
+    bounds = estimate_bounds(food, space)
+    bounds_s = round(space_s + time.perf_counter() - start, 2)
     report = food.mesh.report
     facts = TrustFacts(
         frames=len(capture), registered=int(sfm.registered.sum()),
@@ -479,7 +555,7 @@ def estimate_record(capture: Capture, stages: StageResults, est: Estimate, cfg: 
         "completion_share": food.completion_share,
         "capture": str(capture.root),
         "checkpoint": (str(checkpoint_path(cfg)) if food.completion_summary is not None
-                       and cfg.completion_method == "network" else None),
+                       and "network" in food.completion_summary["method"] else None),
         "volec_version": __version__,
         "config": json_data(cfg),
     }
@@ -541,8 +617,7 @@ def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = N
     capture = keyframe_capture(capture, selection)
     if masks_source(capture, cfg.masks) == "given":  # checked before any work
         check_masks(given_masks(capture), cfg.masking.checks)
-    model = (load_completion_model(cfg)
-             if cfg.use_completion and cfg.completion_method == "network" else None)
+    model = load_completion_model(cfg) if uses_network(cfg) else None
     identity = capture_identity(capture)
     with folder_lock(out_dir):
         preflight(out_dir, {RESULT_FILE: result_provenance(identity, cfg, None)}, overwrite,

@@ -560,9 +560,9 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
     (how many items ran at once, sharing the cores) is recorded with the times.
 
     The estimate is :func:`volec.estimate.estimate_from_stages`, exactly what ``volec estimate``
-    runs, once per method of :data:`METHODS` on the same stage results (no completion, mirror
-    and network completion; the visual hull from the AR poses beside them); the ground truth
-    is read only to score it."""
+    runs, once per method of :data:`METHODS` on the same stage results (no completion, mirror,
+    rotation, rotation-else-network and network completion; the visual hull from the AR poses
+    beside them); the ground truth is read only to score it."""
 
     from volec.estimate import estimate_from_stages, food_silhouettes, load_completion_model
     from volec.meshing import with_normals
@@ -605,6 +605,10 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
         variants = {"no_completion": (replace(cfg, use_completion=False), None),
                     "mirror": (replace(cfg, use_completion=True, completion_method="mirror"),
                                None),
+                    "rotation": (replace(cfg, use_completion=True,
+                                         completion_method="rotation"), None),
+                    "auto": (replace(cfg, use_completion=True, completion_method="auto"),
+                             model),
                     "completion": (replace(cfg, use_completion=True,
                                            completion_method="network"), model)}
         support = None  # the first variant's plane (all find the same one) cuts the hull
@@ -614,7 +618,7 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
             if support is None:
                 support = made.support
             write_bytes_atomic(work / f"mesh_{tag}.ply", made.mesh.mesh.export(file_type="ply"))
-            if net is not None:
+            if tag == DEFAULT_METHOD:  # the cloud the default meshed
                 write_ply(with_normals(made.cloud), work / "food_completed.ply")
             row |= {f"{tag}_ml": made.volume_ml,
                     **_mesh_scores(made.mesh.mesh, truth_points, tag),
@@ -1154,6 +1158,8 @@ METHODS = {
     "visual_hull": "visual hull (AR poses)",
     "no_completion": "VolE-style (no completion)",
     "mirror": "mirror completion",
+    "rotation": "rotation completion",
+    "auto": "rotation where symmetric, else network",
     "completion": "network completion (default)",
 }
 DEFAULT_METHOD = "completion"

@@ -4,5 +4,6 @@
 :mod:`~volec.completion.model` (SymmCompletion: LSTNet + SGFormer in plain torch),
 :mod:`~volec.completion.data` (partial views of procedural shapes for training),
 :mod:`~volec.completion.train` (training, checkpoints), :mod:`~volec.completion.complete`
-(completing a metric cloud) and :mod:`~volec.completion.mirror` (the mirror-symmetry baseline).
+(completing a metric cloud), :mod:`~volec.completion.mirror` (the mirror-symmetry baseline)
+and :mod:`~volec.completion.rotation` (rotational symmetry about the support normal).
 """

@@ -17,7 +17,7 @@ import time
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
@@ -31,6 +31,9 @@ from volec.completion.preprocess import (
 )
 from volec.errors import VolecError
 from volec.pointcloud import PREDICTED_RGB, PointCloud
+
+if TYPE_CHECKING:
+    from volec.space import SpaceGrid
 
 #: The checkpoint shipped with volec (trained by ``make retrain``, preset ``cpu``): package
 #: data, found through importlib.resources wherever volec is installed.
@@ -144,3 +147,21 @@ def mirror_completion(partial: PointCloud, up: np.ndarray | None,
     mirrored = mirrored_points(partial.xyz, up=up, fit_xyz=sample)
     return merged_completion(partial, mirrored, fit_normalization(partial.xyz), cfg,
                              len(mirrored), start)
+
+
+def rotation_completion(partial: PointCloud, up: np.ndarray, space: SpaceGrid | None,
+                        cfg: CompletionConfig | None = None) -> Completion:
+    """Complete ``partial`` by its half-turn about its best vertical axis
+    (:mod:`volec.completion.rotation`): the turned points that land in ``space``'s unknown
+    part, merged as the network's are; none when the cloud is not symmetric under the turn.
+    The summary has the axis and how well the turn fits."""
+    from volec.completion.rotation import rotated_points
+
+    cfg = cfg or CompletionConfig()
+    _check_partial(partial, cfg)
+    start = time.perf_counter()
+    moved, fit = rotated_points(partial.xyz, up, space)
+    done = merged_completion(partial, moved, fit_normalization(partial.xyz), cfg, len(moved),
+                             start)
+    done.summary |= fit.record()
+    return done
