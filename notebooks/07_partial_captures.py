@@ -44,7 +44,9 @@
 # - **rotation completion**: the masked cloud plus its half-turn about its best vertical axis,
 #   kept only where no camera constrained the space (the far side of a half orbit);
 # - **network completion**: the masked cloud plus the SymmCompletion network's points where
-#   nothing was observed; this is volec's default.
+#   nothing was observed;
+# - **volec's default**: the half-turn where the masked cloud is symmetric under it, then the
+#   network for what is still missing (the network alone where it is not).
 #
 # Volumes are scored against the true volume (APE: absolute percentage error) and each mesh by
 # its Chamfer-L1 distance to the true surface. The ground truth is read only to score.

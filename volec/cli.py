@@ -418,13 +418,12 @@ def build_parser() -> argparse.ArgumentParser:
     estimate.add_argument("--out", required=True, type=Path, help="output folder")
     estimate.add_argument("--no-completion", action="store_true",
                           help="mesh the masked cloud as it is (the VolE-style baseline)")
-    estimate.add_argument("--completion", default="network",
+    estimate.add_argument("--completion", default="auto",
                           choices=["network", "mirror", "rotation", "auto"],
-                          help="what completes the masked cloud: the shipped network "
-                          "(default), its reflection in its best mirror plane, its "
-                          "half-turn about its best vertical axis where nobody saw, or "
-                          "(auto) the half-turn where the food is symmetric under it, else "
-                          "the network")
+                          help="what completes the masked cloud: (auto, the default) its "
+                          "half-turn about its best vertical axis where the food is symmetric "
+                          "under it, then the shipped network; the network alone; its "
+                          "reflection in its best mirror plane; or the half-turn alone")
     estimate.add_argument("--preset", default="default",
                           choices=["default", "fast", "tolerant_masks"],
                           help="fast: coarser dense stereo and meshing; tolerant_masks: for "

@@ -561,8 +561,8 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
 
     The estimate is :func:`volec.estimate.estimate_from_stages`, exactly what ``volec estimate``
     runs, once per method of :data:`METHODS` on the same stage results (no completion, mirror,
-    rotation, rotation-else-network and network completion; the visual hull from the AR poses
-    beside them); the ground truth is read only to score it."""
+    rotation and network completion, and ``cfg``'s own completion, the default; the visual
+    hull from the AR poses beside them); the ground truth is read only to score it."""
 
     from volec.estimate import estimate_from_stages, food_silhouettes, load_completion_model
     from volec.meshing import with_normals
@@ -607,10 +607,9 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
                                None),
                     "rotation": (replace(cfg, use_completion=True,
                                          completion_method="rotation"), None),
-                    "auto": (replace(cfg, use_completion=True, completion_method="auto"),
-                             model),
-                    "completion": (replace(cfg, use_completion=True,
-                                           completion_method="network"), model)}
+                    "network": (replace(cfg, use_completion=True, completion_method="network"),
+                                model),
+                    "completion": (replace(cfg, use_completion=True), model)}  # the default
         support = None  # the first variant's plane (all find the same one) cuts the hull
         for tag, (variant, net) in variants.items():
             est = estimate_from_stages(capture, stages, net, variant, silhouettes, scale)
@@ -1159,8 +1158,8 @@ METHODS = {
     "no_completion": "VolE-style (no completion)",
     "mirror": "mirror completion",
     "rotation": "rotation completion",
-    "auto": "rotation where symmetric, else network",
-    "completion": "network completion (default)",
+    "network": "network completion",
+    "completion": "volec's default (rotation where symmetric, then network)",
 }
 DEFAULT_METHOD = "completion"
 
