@@ -140,6 +140,7 @@ def test_volec_estimate_segments_the_food_itself(small_capture, small_result, tm
 
 
 def test_auto_completion_turns_a_symmetric_item_then_asks_the_network():
+    from tests.completion.test_rotation import lying_cone
     from tests.test_space import TABLE, _scene
     from volec.estimate import (
         EstimateConfig,
@@ -163,10 +164,7 @@ def test_auto_completion_turns_a_symmetric_item_then_asks_the_network():
     assert len(both.cloud) == len(cloud) + both.summary["predicted_kept"]
     assert len(both.predicted_xyz) == both.summary["predicted_kept"]
     # a cone lying down is not: the network decides (none without its model)
-    rng = np.random.default_rng(2)
-    x, theta = rng.uniform(-0.04, 0.04, 5000), rng.uniform(0, 2 * np.pi, 5000)
-    radius = 0.021 - 0.009 * x / 0.04
-    cone = PointCloud(np.stack([x, radius * np.cos(theta), 0.03 + radius * np.sin(theta)], 1))
+    cone = PointCloud(lying_cone(0.009, 5000) + np.array([0.0, 0.0, 0.03]))
     assert completed_cloud(cone, TABLE, None, None, None, auto) is None
     network = completed_cloud(cone, TABLE, None, load_completion_model(auto), None, auto)
     assert len(network.cloud) == len(cone) + network.summary["predicted_kept"]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.test_space import CENTRE, TABLE, TRUTH_ML, R, _scene
+from tests.test_space import CENTRE, TABLE, TRUTH_ML, R, _azimuth_deg, _scene
 from volec.completion.complete import rotation_completion
 from volec.completion.rotation import fit_rotation_axis, turned
 from volec.meshing import mesh_cloud
@@ -14,6 +14,16 @@ from volec.space import UNKNOWN, SpaceConfig, SpaceGrid, observed_space
 from volec.volume import volume_ml
 
 UP = np.array([0.0, 0.0, 1.0])
+
+
+def lying_cone(taper_m: float, points: int = 30000) -> np.ndarray:
+    """(N, 3) a cone lying along x, 80 mm long, its radius 21 mm in the middle, tapering by
+    ``taper_m`` towards +x (and growing as much towards -x)."""
+    rng = np.random.default_rng(2)
+    x = rng.uniform(-0.04, 0.04, points)
+    theta = rng.uniform(0, 2 * np.pi, points)
+    radius = 0.021 - taper_m * x / 0.04
+    return np.stack([x, radius * np.cos(theta), radius * np.sin(theta)], axis=1)
 
 
 def test_a_half_turn_is_undone_by_another_and_keeps_height_and_radius():
@@ -55,7 +65,7 @@ def test_the_far_side_of_a_half_orbit_sphere_is_filled_and_its_volume_comes_clos
     assert len(added) > 500
     assert (space.states_at(added) == UNKNOWN).all()  # nothing where the cameras saw
     assert np.median(np.abs(np.linalg.norm(added - CENTRE, axis=1) - R)) < 0.001
-    azimuth = np.degrees(np.arctan2(*(added - CENTRE)[:, 1::-1].T)) % 360
+    azimuth = _azimuth_deg(added)
     assert ((azimuth > 240) & (azimuth < 300)).mean() > 0.3  # the side nobody filmed
     assert np.linalg.norm(np.array(done.summary["axis_point_m"])[:2] - CENTRE[:2]) < 0.001
     without = volume_ml(mesh_cloud(cloud, TABLE, silhouettes=views).mesh)
@@ -80,14 +90,9 @@ def test_a_pear_lying_on_its_side_is_not_symmetric_under_a_half_turn():
     # about any vertical axis puts the wide end where the narrow one is, so no copies are made
     from volec.completion.rotation import fit_rotation, rotated_points
 
-    rng = np.random.default_rng(2)
-    x = rng.uniform(-0.04, 0.04, 30000)
-    theta = rng.uniform(0, 2 * np.pi, 30000)
-    radius = 0.021 - 0.009 * x / 0.04
-    xyz = np.stack([x, radius * np.cos(theta), radius * np.sin(theta)], axis=1)
+    xyz = lying_cone(0.009)
     fit = fit_rotation(xyz, UP)
     assert not fit.symmetric and fit.median_distance_m > 0.003
     assert len(rotated_points(xyz, UP)[0]) == 0
     # the same cone with no taper (a cylinder lying down) is two-fold symmetric
-    level = np.stack([x, 0.021 * np.cos(theta), 0.021 * np.sin(theta)], axis=1)
-    assert fit_rotation(level, UP).symmetric
+    assert fit_rotation(lying_cone(0.0), UP).symmetric

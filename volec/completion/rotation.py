@@ -67,6 +67,11 @@ class RotationConfig:
     """Seeds the fitting and copying subsamples."""
 
 
+def _subsample(xyz: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """At most ``n`` distinct points of ``xyz``, drawn with ``rng``."""
+    return xyz[rng.choice(len(xyz), min(n, len(xyz)), replace=False)]
+
+
 def turned(xyz: np.ndarray, centre: np.ndarray, up: np.ndarray, angle_rad: float
            ) -> np.ndarray:
     """``xyz`` turned by ``angle_rad`` about the line through ``centre`` along the unit
@@ -103,7 +108,7 @@ def fit_rotation_axis(xyz: np.ndarray, up: np.ndarray, space: SpaceGrid | None =
     xyz = np.asarray(xyz, float)
     up = np.asarray(up, float) / np.linalg.norm(up)
     rng = np.random.default_rng(cfg.seed)
-    sample = xyz[rng.choice(len(xyz), min(cfg.fit_points, len(xyz)), replace=False)]
+    sample = _subsample(xyz, cfg.fit_points, rng)
     tree = cKDTree(xyz)
     spacing = float(np.median(tree.query(sample, k=2)[0][:, 1]))
     radius = cfg.inlier_spacings * spacing
@@ -159,8 +164,7 @@ def fit_rotation(xyz: np.ndarray, up: np.ndarray, space: SpaceGrid | None = None
     centre, score = fit_rotation_axis(xyz, up, space, cfg)
     if not np.isfinite(score):
         return RotationFit(centre, score, float("inf"), False)
-    rng = np.random.default_rng(cfg.seed + 1)
-    sample = xyz[rng.choice(len(xyz), min(cfg.fit_points, len(xyz)), replace=False)]
+    sample = _subsample(xyz, cfg.fit_points, np.random.default_rng(cfg.seed + 1))
     moved = np.concatenate([turned(sample, centre, up, a) for a in np.radians(cfg.angles_deg)])
     if space is not None:
         moved = moved[space.states_at(moved) != UNKNOWN]
@@ -178,8 +182,7 @@ def rotated_points(xyz: np.ndarray, up: np.ndarray, space: SpaceGrid | None = No
     fit = fit_rotation(xyz, up, space, cfg)
     if not fit.symmetric:
         return np.empty((0, 3)), fit
-    rng = np.random.default_rng(cfg.seed)
-    copied = xyz[rng.choice(len(xyz), min(cfg.copy_points, len(xyz)), replace=False)]
+    copied = _subsample(xyz, cfg.copy_points, np.random.default_rng(cfg.seed))
     moved = np.concatenate([turned(copied, fit.axis_point_m, up, a)
                             for a in np.radians(cfg.angles_deg)])
     if space is not None:
