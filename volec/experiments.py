@@ -803,7 +803,8 @@ def segmentation_row(root: Path, item: str, scenario: Scenario, cfg: EstimateCon
             tolerant = PRESETS["tolerant_masks"]
             noisy_cfg = replace(cfg, masking=tolerant.masking, meshing=replace(
                 cfg.meshing, silhouette_min_views=tolerant.meshing.silhouette_min_views,
-                silhouette_min_share=tolerant.meshing.silhouette_min_share))
+                silhouette_min_share=tolerant.meshing.silhouette_min_share,
+                silhouette_margin_px=tolerant.meshing.silhouette_margin_px))
             row["noisy_ml"] = _volume_with_masks(out, capture, noisy, "work-noisy", noisy_cfg,
                                                  model)
         return row

@@ -122,9 +122,23 @@ class MeshingConfig:
     """Rays cast per grid point to decide inside/outside (majority vote)."""
     below_support_m: float = 0.001
     """Points further than this below the support plane are dropped before Poisson."""
-    silhouette_margin_px: float = 1.0
+    silhouette_margin_px: float = 0.5
     """Tolerance of the silhouette carving, pixels: a grid point is outside a view's mask
-    when it projects more than this outside it (masks and poses are not exact)."""
+    when it projects more than this outside it. The mask's signed distance field crosses zero
+    halfway between its inside and outside pixels, where an exact mask's edge lies on
+    average; but a point is carved by its ``silhouette_min_views``-th largest distance over
+    the views, and on the seen surface those distances scatter by the pixels' quantization,
+    so with no margin the carving bites into the food. Measured on the benchmark apple with
+    exact poses and the renderer's exact depth (nothing else wrong): between 10 % and 100 %
+    of its height the mesh lay 0.01-0.02 mm inside the true surface without carving and with
+    0.5 px, 0.05-0.08 mm inside with 0 px; with 1 px (the earlier default) the visual hull,
+    which binds wherever no depth reached (the gap under the item), lay a further pixel
+    (about 0.5 mm) out, and the volume was +1.36 % against +0.91 % at 0.5 px. On the 21
+    full orbits (SfM poses, phone look, exact masks, default completion) the MAPE was 1.67 %
+    at 1 px, 1.47 % at 0.5 px and 1.44 % at 0 px."""
+    silhouette_margin_auto_px: float = 1.0
+    """The margin where the masks are volec's automatic segmentation's (:mod:`volec.segment`),
+    whose boundaries are a pixel or two off: the earlier default, not yet remeasured."""
     silhouette_max_views: int = 50
     """At most this many registered views, evenly spaced through the capture, make the
     visual hull (0: all). The carving's cost grows with the views, and a 100-frame orbit's
@@ -446,7 +460,8 @@ def _carve(field_m: np.ndarray, lower: np.ndarray, shape: tuple[int, int, int],
     inside_before = int((flat < 0).sum())
     flat[near] = np.maximum(flat[near], hull)
     carved = 1.0 - (flat < 0).sum() / max(inside_before, 1)
-    report.update({"silhouette_views": len(views), "carved_fraction": round(float(carved), 4)})
+    report.update({"silhouette_views": len(views), "carved_fraction": round(float(carved), 4),
+                   "silhouette_margin_px": cfg.silhouette_margin_px})
     return flat.reshape(shape)
 
 
