@@ -245,21 +245,34 @@ def test_silhouette_views_are_evenly_spaced_registered_frames(tmp_path):
     assert len(silhouette_views(capture, given_masks(capture), poses, registered)) == 5
 
 
+def _sphere_on_table(r: float = 0.03, n_views: int = 24):
+    """A sphere of radius ``r`` resting on the table z = 0: its centre, 40 000 unit directions
+    from it (seeded), the table, and the exact silhouettes from ``n_views`` cameras 0.3 m
+    away, 20 and 50 degrees up (1 px is 1 mm at the sphere)."""
+    centre = np.array([0.0, 0.0, r])
+    d = np.random.default_rng(3).normal(size=(40000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    table = SupportPlane((0.0, 0.0, 1.0), 0.0, 1000, 0.0)
+    intr = Intrinsics(width=320, height=240, fx=300.0, fy=300.0, cx=160.0, cy=120.0)
+    views = []
+    for k in range(n_views):
+        azimuth, elevation = 2 * np.pi * k / n_views, np.radians(20.0 + 30.0 * (k % 2))
+        eye = centre + 0.3 * np.array([np.cos(elevation) * np.cos(azimuth),
+                                       np.cos(elevation) * np.sin(azimuth), np.sin(elevation)])
+        T = look_at_opencv(eye, centre, np.array([0.0, 0.0, 1.0]))
+        views.append(silhouette_view(_sphere_silhouette(intr, T, centre, r), intr, T))
+    return centre, d, table, views
+
+
 def test_silhouettes_carve_the_unseen_gap_under_a_sphere_on_a_table():
     # A sphere resting on a table, seen only above a third of its height (as a phone sees a
     # round item on a plate): Poisson and the flat cut at the table fill the hidden gap between
     # the sphere's underside and the table; the exact silhouettes from cameras 20-50 degrees
     # above the table carve most of it away, towards the true volume 4/3 pi r^3.
     r = 0.03
-    centre = np.array([0.0, 0.0, r])
-    rng = np.random.default_rng(3)
-    d = rng.normal(size=(40000, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    centre, d, table, views = _sphere_on_table(r)
     seen = d[:, 2] > -0.35
     cloud = PointCloud(centre + r * d[seen], None, d[seen])
-    table = SupportPlane((0.0, 0.0, 1.0), 0.0, 1000, 0.0)
-    intr = Intrinsics(width=320, height=240, fx=300.0, fy=300.0, cx=160.0, cy=120.0)
-    views = _sphere_ring_views(intr, centre, r)
     cfg = MeshingConfig(poisson_depth=7, grid_voxel_m=0.001, thinning_voxel_m=0.0)
     truth = 4 / 3 * np.pi * r**3 * 1e6  # 113.1 mL
     plain = volume_ml(mesh_cloud(cloud, table, cfg).mesh)
@@ -270,19 +283,6 @@ def test_silhouettes_carve_the_unseen_gap_under_a_sphere_on_a_table():
     assert 0 < carved.report["carved_fraction"] < 0.25
 
 
-def _sphere_ring_views(intr: Intrinsics, centre: np.ndarray, r: float, n: int = 24
-                       ) -> list:
-    """Exact silhouettes of a sphere from ``n`` cameras 0.3 m away, 20 and 50 degrees up."""
-    views = []
-    for k in range(n):
-        azimuth, elevation = 2 * np.pi * k / n, np.radians(20.0 + 30.0 * (k % 2))
-        eye = centre + 0.3 * np.array([np.cos(elevation) * np.cos(azimuth),
-                                       np.cos(elevation) * np.sin(azimuth), np.sin(elevation)])
-        T = look_at_opencv(eye, centre, np.array([0.0, 0.0, 1.0]))
-        views.append(silhouette_view(_sphere_silhouette(intr, T, centre, r), intr, T))
-    return views
-
-
 def test_the_default_margin_neither_bites_the_seen_surface_nor_stands_a_pixel_off():
     # Exact silhouettes of a sphere on a table, 1 px = 1 mm at its distance. Where the cloud
     # covers the sphere, carving with no margin bites into it (a point is carved by its
@@ -291,13 +291,7 @@ def test_the_default_margin_neither_bites_the_seen_surface_nor_stands_a_pixel_of
     # cloud stops (the gap under the sphere) the hull binds, and the default stands half a
     # pixel nearer the sphere than a whole pixel's margin, still holding all of it.
     r = 0.03
-    centre = np.array([0.0, 0.0, r])
-    rng = np.random.default_rng(3)
-    d = rng.normal(size=(40000, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    table = SupportPlane((0.0, 0.0, 1.0), 0.0, 1000, 0.0)
-    intr = Intrinsics(width=320, height=240, fx=300.0, fy=300.0, cx=160.0, cy=120.0)
-    views = _sphere_ring_views(intr, centre, r)
+    centre, d, table, views = _sphere_on_table(r)
     cfg = MeshingConfig(poisson_depth=7, grid_voxel_m=0.001, thinning_voxel_m=0.0)
     assert cfg.silhouette_margin_px == MeshingConfig().silhouette_margin_px
 
