@@ -171,17 +171,3 @@ def test_auto_completion_turns_a_symmetric_item_then_asks_the_network():
     assert network is not None and completion_method_used(network, auto) == "network"
     assert not network.summary["rotation"]["symmetric"]
 
-
-def test_automatic_masks_carve_with_their_own_margin_and_given_ones_with_the_default():
-    from volec.estimate import PRESETS, carving_config
-    from volec.meshing import MeshingConfig
-    from volec.segment import MaskSet
-
-    mask = np.zeros((4, 4), bool)
-    cfg = MeshingConfig(silhouette_margin_px=0.5, silhouette_margin_auto_px=1.5)
-    given = carving_config(cfg, MaskSet(("a",), (mask,), "given"))
-    auto = carving_config(cfg, MaskSet(("a",), (mask,), "auto"))
-    assert given.silhouette_margin_px == 0.5
-    assert auto.silhouette_margin_px == 1.5
-    # imperfect masks handed in get the preset made for them: the whole pixel
-    assert PRESETS["tolerant_masks"].meshing.silhouette_margin_px == 1.0

@@ -159,7 +159,7 @@ PRESETS: dict[str, EstimateConfig] = {
     # needed 10 % of the views gave 2.08 % on the same stage results: a share of all the views
     # that see a point is more than the few that see it edge-on, so the unseen gap under the
     # food stayed. Notebook 02's run of this code, captures made anew: 1.72 %. Carving keeps
-    # the 1 px silhouette margin of those measurements (exact masks carve with 0.5 px).
+    # the 1 px silhouette margin of those measurements (the default carves with 0.5 px).
     "tolerant_masks": EstimateConfig(
         masking=replace(MaskingConfig(), min_inside_fraction=0.9),
         meshing=replace(MeshingConfig(), silhouette_min_views=3, silhouette_margin_px=1.0)),
@@ -397,15 +397,6 @@ def estimate_bounds(food: FoodMesh, space: SpaceGrid) -> VolumeBounds:
     return volume_bounds(space, inside, food.volume_ml)
 
 
-def carving_config(cfg: MeshingConfig, masks: MaskSet) -> MeshingConfig:
-    """``cfg`` with the silhouette margin for ``masks``: volec's automatic masks carve with
-    ``silhouette_margin_auto_px``, all others (the capture's, or handed in) with
-    ``silhouette_margin_px``."""
-    if masks.source == "auto":
-        return replace(cfg, silhouette_margin_px=cfg.silhouette_margin_auto_px)
-    return cfg
-
-
 def estimate_from_stages(capture: Capture, stages: StageResults, model: SymmCompletion | None,
                          cfg: EstimateConfig, silhouettes: list[SilhouetteView] | None = None,
                          scale: ScaleCheck | None = None) -> Estimate:
@@ -414,7 +405,6 @@ def estimate_from_stages(capture: Capture, stages: StageResults, model: SymmComp
     it is not to be trusted (:mod:`volec.trust`). The pure core of :func:`run_estimate` and of
     the experiments."""
     up = capture_up(capture)
-    cfg = replace(cfg, meshing=carving_config(cfg.meshing, stages.masks))
     left_out: list[SilhouetteView] = []
     if silhouettes is not None:
         silhouettes, left_out = consistent_views(silhouettes, stages.masked.cloud.xyz,

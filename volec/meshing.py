@@ -135,13 +135,9 @@ class MeshingConfig:
     which binds wherever no depth reached (the gap under the item), lay a further pixel
     (about 0.5 mm) out, and the volume was +1.36 % against +0.91 % at 0.5 px. On the 21
     full orbits (SfM poses, phone look, exact masks, default completion) the MAPE was 1.67 %
-    at 1 px, 1.47 % at 0.5 px and 1.44 % at 0 px."""
-    silhouette_margin_auto_px: float = 1.0
-    """The margin where the masks are volec's automatic segmentation's (:mod:`volec.segment`),
-    whose boundaries can be a pixel or two off. On the 21 full orbits in the benchmark's
-    ordinary setup its masks gave a MAPE of 1.98 % at 1 px and 1.84 % at 0.5 px (default
-    completion, the same stage results); it stays at 1 px until the hard setups, where the
-    segmentation errs most, are measured too."""
+    at 1 px, 1.47 % at 0.5 px and 1.44 % at 0 px; with volec's automatic masks (the
+    benchmark's ordinary setup) 1.98 % at 1 px and 1.84 % at 0.5 px. Masks known to be a few
+    pixels off take the ``tolerant_masks`` preset (1 px, three views)."""
     silhouette_max_views: int = 50
     """At most this many registered views, evenly spaced through the capture, make the
     visual hull (0: all). The carving's cost grows with the views, and a 100-frame orbit's
