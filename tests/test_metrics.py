@@ -48,6 +48,22 @@ def test_cameras_above_see_the_top_and_not_the_bottom():
     assert list(counts) == [6, 6, 0]
 
 
+def test_cameras_count_only_where_they_see_the_surface_frontally_enough():
+    # A point in the middle of the box's +x face (normal +x) and one on its top (normal +z).
+    # Camera i sits at (0.4 cos a, 0.4 sin a, 0.35), a = 60 i degrees: the cosine between the
+    # side normal and the direction to camera 0 is 0.35 / |(0.35, 0, 0.35)| = 0.707, to
+    # cameras 1 and 5 it is 0.15 / |(0.15, 0.346, 0.35)| = 0.291, and the other three are
+    # behind the face; for the top point every camera sees it at 0.3 / 0.5 = 0.6.
+    points = np.array([[0.05, 0.0, 0.0], [0.0, 0.0, 0.05]])
+    normals = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    cameras = _cameras_above()
+    assert list(views_seeing(points, BOX, cameras)) == [3, 6]
+    for cosine, expected in ((0.0, [3, 6]), (0.25, [3, 6]), (0.5, [1, 6]), (0.65, [1, 0]),
+                             (0.75, [0, 0])):
+        counts = views_seeing(points, BOX, cameras, normals=normals, min_cosine=cosine)
+        assert list(counts) == expected, cosine
+
+
 def test_chamfer_of_shifted_copies():
     a = sample_surface(BOX, 2000, seed=1)
     assert chamfer_distance(a, a) == (0.0, 0.0)

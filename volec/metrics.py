@@ -107,10 +107,22 @@ def sample_surface(mesh: trimesh.Trimesh, n: int, seed: int = 0) -> np.ndarray:
     return np.asarray(points, float)
 
 
+def sample_surface_with_normals(mesh: trimesh.Trimesh, n: int, seed: int = 0
+                                ) -> tuple[np.ndarray, np.ndarray]:
+    """(``n`` points spread uniformly by area over the mesh surface, their faces' unit
+    normals), both (n, 3), seeded."""
+    points, faces = trimesh.sample.sample_surface(mesh, n, seed=seed)
+    return np.asarray(points, float), np.asarray(mesh.face_normals[faces], float)
+
+
 def views_seeing(points: np.ndarray, mesh: trimesh.Trimesh, capture: Capture,
-                 tolerance_m: float = 5e-4) -> np.ndarray:
+                 tolerance_m: float = 5e-4, normals: np.ndarray | None = None,
+                 min_cosine: float = 0.0) -> np.ndarray:
     """Per surface point (N,), how many of the capture's cameras see it: it projects into the
-    image and the ray from the camera meets the mesh no earlier than the point itself."""
+    image and the ray from the camera meets the mesh no earlier than the point itself. With
+    the points' outward ``normals``, a camera counts only where the cosine between the normal
+    and the direction to the camera is at least ``min_cosine`` (dense stereo's limit on how
+    obliquely a surface may be seen)."""
     from trimesh.ray.ray_pyembree import RayMeshIntersector
 
     rays = RayMeshIntersector(mesh)
@@ -130,6 +142,11 @@ def views_seeing(points: np.ndarray, mesh: trimesh.Trimesh, capture: Capture,
         offset = points[idx] - origin
         dist = np.linalg.norm(offset, axis=1)
         direction = offset / dist[:, None]
+        if normals is not None:
+            frontal = np.einsum("ij,ij->i", normals[idx], -direction) >= min_cosine
+            idx, dist, direction = idx[frontal], dist[frontal], direction[frontal]
+            if not len(idx):
+                continue
         hits, ray_idx, _ = rays.intersects_location(
             np.repeat(origin[None], len(idx), axis=0), direction, multiple_hits=False
         )

@@ -3,9 +3,10 @@
 In: training shapes (:mod:`volec.synth.families`, never the benchmark items) and a
 :class:`ViewConfig`. Out: per shape, the complete surface (uniform samples) and
 ``views_per_shape`` partial clouds, each what a phone orbit would reconstruct: the points that
-at least two cameras of a random orbit see (an arc of random length, so part of the item can
-be missing), never the bottom (it rests on the table), with a little noise. Stored as one
-``.npz`` per shape; :class:`CompletionDataset` serves normalized (partial, complete) pairs.
+at least two cameras of a random orbit see, none of them edge-on (an arc of random length, so
+part of the item can be missing), never the bottom (it rests on the table), with a little
+noise. Stored as one ``.npz`` per shape; :class:`CompletionDataset` serves normalized
+(partial, complete) pairs.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from volec.capture import Capture, Frame, Intrinsics
 from volec.completion.preprocess import fit_normalization, resample
 from volec.geometry import look_at_opencv
 from volec.io import write_bytes_atomic
-from volec.metrics import sample_surface, views_seeing
+from volec.metrics import sample_surface, sample_surface_with_normals, views_seeing
 from volec.progress import Progress
 from volec.synth.families import family_mesh
 
@@ -43,7 +44,14 @@ class ViewConfig:
     elevation_deg: tuple[float, float] = (15.0, 60.0)
     """Range of camera elevations above the table, degrees."""
     min_views: int = 2
-    """A point must be seen by this many cameras (stereo needs two)."""
+    """A point must be seen by this many cameras (stereo needs two)..."""
+    min_view_cosine: float = 0.5
+    """... each seeing it no more obliquely than this cosine between the surface normal and
+    the direction to the camera: the dense stage drops depths seen more obliquely
+    (``DenseConfig.min_oblique_cosine``), so a real cloud stops short of grazing rims and of
+    the underside a camera above the table sees only edge-on. The network trained on views
+    without this limit put its underside just below the lowest observed points, inside the
+    truth (on the benchmark's sparse captures: pear -4.5 %, capsicum -3.0 %)."""
     contact_height_m: float = 0.002
     """Points this close to the table are hidden (the food rests on it)."""
     noise_m: float = 0.0003
@@ -71,8 +79,10 @@ def orbit_cameras(mesh: trimesh.Trimesh, rng: np.random.Generator, cfg: ViewConf
 
 def partial_view(mesh: trimesh.Trimesh, rng: np.random.Generator, cfg: ViewConfig) -> np.ndarray:
     """(N, 3) points of ``mesh`` that one random orbit reconstructs, metres."""
-    points = sample_surface(mesh, cfg.n_surface_points, seed=int(rng.integers(2**31)))
-    seen = views_seeing(points, mesh, orbit_cameras(mesh, rng, cfg)) >= cfg.min_views
+    points, normals = sample_surface_with_normals(mesh, cfg.n_surface_points,
+                                                  seed=int(rng.integers(2**31)))
+    seen = views_seeing(points, mesh, orbit_cameras(mesh, rng, cfg), normals=normals,
+                        min_cosine=cfg.min_view_cosine) >= cfg.min_views
     seen &= points[:, 2] > mesh.bounds[0, 2] + cfg.contact_height_m
     return points[seen] + rng.normal(scale=cfg.noise_m, size=(int(seen.sum()), 3))
 

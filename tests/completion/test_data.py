@@ -1,0 +1,36 @@
+"""Simulated partial views: what a phone orbit's dense stereo reconstructs of a shape."""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+
+from volec.completion.data import ViewConfig, partial_view
+
+RADIUS_M = 0.03
+# A sphere resting on the table (z = 0).
+SPHERE = trimesh.creation.icosphere(subdivisions=4, radius=RADIUS_M)
+SPHERE.apply_translation([0.0, 0.0, RADIUS_M])
+
+
+def _lowest_heights(cfg: ViewConfig, views: int = 4) -> list[float]:
+    rng = np.random.default_rng(3)
+    return [float(partial_view(SPHERE, rng, cfg)[:, 2].min()) for _ in range(views)]
+
+
+def test_partial_views_stop_where_every_camera_sees_the_sphere_too_obliquely():
+    # Cameras are at least 15 degrees above the table. The sphere's normal tilts theta below
+    # the horizontal at height R (1 - sin theta), and the direction to a camera is at least
+    # theta + 15 degrees from it, so no camera sees it within 60 degrees (cosine 0.5) below
+    # theta = 45 degrees: height 0.293 R. Less 1.5 mm for the noise (0.3 mm) and the mesh.
+    cfg = ViewConfig(elevation_deg=(15.0, 60.0), min_view_cosine=0.5)
+    bound_m = RADIUS_M * (1 - np.sin(np.radians(45.0))) - 0.0015
+    assert min(_lowest_heights(cfg)) >= bound_m
+
+
+def test_without_the_limit_partial_views_reach_below_it():
+    # Seen edge-on, the sphere shows down to theta = 75 degrees (height 0.034 R = 1 mm), above
+    # the contact's 2 mm: some views reach below the 45-degree bound of the test above.
+    cfg = ViewConfig(elevation_deg=(15.0, 60.0), min_view_cosine=0.0)
+    bound_m = RADIUS_M * (1 - np.sin(np.radians(45.0))) - 0.0015
+    assert min(_lowest_heights(cfg)) < bound_m
