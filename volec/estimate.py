@@ -338,7 +338,7 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     if completion is not None:
         cloud = completion.cloud
         summary = {"method": completion_method_used(completion, cfg), **completion.summary}
-    mesh = mesh_cloud(cloud, plane, cfg.meshing, silhouettes)
+    mesh = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked)
     volume = volume_ml(mesh.mesh)
     share = None
     if completion is not None:
