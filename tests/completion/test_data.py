@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from volec.completion.data import ViewConfig, partial_view
+from volec.completion.data import ViewConfig, in_holes, partial_view
 
 RADIUS_M = 0.03
 # A sphere resting on the table (z = 0).
@@ -23,7 +23,7 @@ def test_partial_views_stop_where_every_camera_sees_the_sphere_too_obliquely():
     # the horizontal at height R (1 - sin theta), and the direction to a camera is at least
     # theta + 15 degrees from it, so no camera sees it within 60 degrees (cosine 0.5) below
     # theta = 45 degrees: height 0.293 R. Less 1.5 mm for the noise (0.3 mm) and the mesh.
-    cfg = ViewConfig(elevation_deg=(15.0, 60.0), min_view_cosine=0.5)
+    cfg = ViewConfig(elevation_deg=(15.0, 60.0), min_view_cosine=0.5, noise_m=0.0003)
     bound_m = RADIUS_M * (1 - np.sin(np.radians(45.0))) - 0.0015
     assert min(_lowest_heights(cfg)) >= bound_m
 
@@ -31,6 +31,21 @@ def test_partial_views_stop_where_every_camera_sees_the_sphere_too_obliquely():
 def test_without_the_limit_partial_views_reach_below_it():
     # Seen edge-on, the sphere shows down to theta = 75 degrees (height 0.034 R = 1 mm), above
     # the contact's 2 mm: some views reach below the 45-degree bound of the test above.
-    cfg = ViewConfig(elevation_deg=(15.0, 60.0), min_view_cosine=0.0)
+    cfg = ViewConfig(elevation_deg=(15.0, 60.0), min_view_cosine=0.0, noise_m=0.0003)
     bound_m = RADIUS_M * (1 - np.sin(np.radians(45.0))) - 0.0015
     assert min(_lowest_heights(cfg)) < bound_m
+
+
+def test_holes_are_balls_around_seen_points_of_the_drawn_size():
+    # Three holes of radius 10 % of a 60 mm sphere (6 mm) around seen points: every removed
+    # point lies within 6 mm of one of three centres, and each hole removes the sphere's
+    # points within 6 mm of its centre (about 1 % of the surface each).
+    rng = np.random.default_rng(0)
+    points = np.asarray(trimesh.sample.sample_surface(SPHERE, 20000, seed=1)[0])
+    seen = points[:, 2] > RADIUS_M
+    cfg = ViewConfig(holes=(3, 3), hole_radius_share=(0.1, 0.1))
+    holes = in_holes(points, seen, 2 * RADIUS_M, rng, cfg)
+    assert 0.005 < holes.mean() < 0.04
+    assert holes[seen].sum() > 0.5 * holes.sum()  # centred on seen points
+    none = in_holes(points, seen, 2 * RADIUS_M, rng, ViewConfig(holes=(0, 0)))
+    assert not none.any()

@@ -52,7 +52,7 @@ class TrainConfig:
     seed: int = 0
     """Seeds torch, the sampling of pairs and the resampling of clouds."""
     train_per_family: int = 4
-    """Training shapes per family (14 families)."""
+    """Training shapes per family (30 families: 120 shapes)."""
     val_per_family: int = 1
     """Validation shapes per family (other seeds, never trained on)."""
     val_first_seed: int = 1000

@@ -5,8 +5,11 @@ in metres resting on z = 0, like :func:`volec.synth.shapes.item_mesh`, with a ra
 
 The 21 benchmark items must stay unseen by the completion network, so these are other kinds
 (egg, tomato, potato, muffin, loaf, cookie, roll, carrot, strawberry, mango, peach, dumpling,
-brownie, onion) whose proportions are drawn at random per shape; each is perturbed by its own
-solid noise. A shape is named ``FAMILY-SEED``; the same name gives the same mesh everywhere.
+brownie, onion, kiwi, plum, sweet potato, cucumber, eggplant, scone, meatball, croquette, sushi
+roll, macaron, mushroom, radish, pineapple ring, onigiri, sausage, drumstick: 30 kinds, as
+the paper trains on 30 MetaFood3D objects) whose proportions are drawn at random per shape;
+each is perturbed by its own solid noise. A shape is named ``FAMILY-SEED``; the same name gives
+the same mesh everywhere.
 """
 
 from __future__ import annotations
@@ -188,11 +191,183 @@ def _onion(rng: np.random.Generator) -> tuple[Field, float]:
     return f, 1.6
 
 
+def _segment_distance_x(p: np.ndarray, half_length: float) -> np.ndarray:
+    """Distance of ``p`` (N, 3) to the segment from -``half_length`` to ``half_length`` on
+    the x axis."""
+    on_axis = np.zeros_like(p)
+    on_axis[:, 0] = np.clip(p[:, 0], -half_length, half_length)
+    return np.linalg.norm(p - on_axis, axis=1)
+
+
+def _kiwi(rng: np.random.Generator) -> tuple[Field, float]:
+    radii = (rng.uniform(1.15, 1.35), rng.uniform(0.85, 0.95), rng.uniform(0.8, 0.9))
+    return (lambda p: _ellipsoid(p, radii)), radii[0] + 0.5
+
+
+def _plum(rng: np.random.Generator) -> tuple[Field, float]:
+    tall, groove = rng.uniform(1.0, 1.2), rng.uniform(0.03, 0.08)
+
+    def f(p: np.ndarray) -> np.ndarray:
+        d = _ellipsoid(p, (0.95, 0.9, tall))
+        return d + groove * np.exp(-(p[:, 0] ** 2) / 0.015) * (p[:, 1] > 0)
+
+    return f, tall + 0.5
+
+
+def _sweet_potato(rng: np.random.Generator) -> tuple[Field, float]:
+    length, r0, bend = rng.uniform(2.0, 2.8), rng.uniform(0.5, 0.7), rng.uniform(-0.3, 0.3)
+    t = np.linspace(-1.0, 1.0, 300)
+    centre = np.stack([length / 2 * t, bend * t**2, np.zeros_like(t)], axis=1)
+    radius = r0 * np.sqrt(np.clip(1.0 - t**2, 0.0, 1.0)) * (1.0 - 0.2 * t) + 0.05
+    return (lambda p: _tube(p, centre, radius)), length / 2 + r0 + 0.5
+
+
+def _cucumber(rng: np.random.Generator) -> tuple[Field, float]:
+    half, radius = rng.uniform(1.6, 2.4), rng.uniform(0.35, 0.5)
+
+    def f(p: np.ndarray) -> np.ndarray:
+        taper = 1.0 - 0.1 * (p[:, 0] / half) ** 2
+        return _segment_distance_x(p, half) - radius * np.clip(taper, 0.8, 1.0)
+
+    return f, half + radius + 0.5
+
+
+def _eggplant(rng: np.random.Generator) -> tuple[Field, float]:
+    length, bulb, neck = rng.uniform(2.0, 2.6), rng.uniform(0.6, 0.8), rng.uniform(0.3, 0.4)
+    t = np.linspace(0.0, 1.0, 300)
+    centre = np.stack([length * (t - 0.5), 0.2 * np.sin(np.pi * t), np.zeros_like(t)], axis=1)
+    widening = np.clip(t / 0.7, 0.0, 1.0)
+    radius = neck + (bulb - neck) * widening**2 * (3 - 2 * widening)  # a smooth step
+    radius = radius * np.sqrt(np.clip(1.0 - (2 * t - 1) ** 6, 0.05, 1.0))  # rounded ends
+    return (lambda p: _tube(p, centre, radius)), length / 2 + bulb + 0.5
+
+
+def _scone(rng: np.random.Generator) -> tuple[Field, float]:
+    radius, height, dome = rng.uniform(0.9, 1.1), rng.uniform(0.6, 0.9), rng.uniform(0.1, 0.25)
+
+    def f(p: np.ndarray) -> np.ndarray:
+        rho, _ = _rho_theta(p)
+        top = height + dome * (1.0 - np.clip(rho / radius, 0, 1) ** 2)
+        return _smax(_smax(rho - radius, p[:, 2] - top, 0.15), -p[:, 2], 0.06)
+
+    return f, max(radius, height + dome) + 0.5
+
+
+def _meatball(rng: np.random.Generator) -> tuple[Field, float]:
+    flat = rng.uniform(0.75, 0.9)
+    return (lambda p: _smax(_ellipsoid(p, (1.0, 1.0, flat)), -p[:, 2] - 0.8 * flat, 0.1)), 1.5
+
+
+def _croquette(rng: np.random.Generator) -> tuple[Field, float]:
+    half, radius = rng.uniform(0.7, 1.1), rng.uniform(0.45, 0.6)
+
+    def f(p: np.ndarray) -> np.ndarray:
+        return _segment_distance_x(p, half) - radius
+
+    return f, half + radius + 0.5
+
+
+def _sushi_roll(rng: np.random.Generator) -> tuple[Field, float]:
+    radius, half_height = rng.uniform(0.8, 1.0), rng.uniform(0.35, 0.5)
+
+    def f(p: np.ndarray) -> np.ndarray:
+        rho, _ = _rho_theta(p)
+        return _smax(rho - radius, np.abs(p[:, 2]) - half_height, 0.05)
+
+    return f, radius + 0.5
+
+
+def _macaron(rng: np.random.Generator) -> tuple[Field, float]:
+    radius, shell = rng.uniform(0.9, 1.1), rng.uniform(0.22, 0.3)
+
+    def f(p: np.ndarray) -> np.ndarray:
+        rho, _ = _rho_theta(p)
+        shells = [_ellipsoid(p - np.array([0.0, 0.0, s * 0.55 * shell]), (radius, radius, shell))
+                  for s in (-1, 1)]
+        filling = _smax(rho - 0.85 * radius, np.abs(p[:, 2]) - 0.3 * shell, 0.05)
+        return _smin(_smin(shells[0], shells[1], 0.05), filling, 0.05)
+
+    return f, radius + 0.5
+
+
+def _mushroom(rng: np.random.Generator) -> tuple[Field, float]:
+    cap, stem, stem_h = rng.uniform(0.9, 1.2), rng.uniform(0.25, 0.35), rng.uniform(0.4, 0.7)
+
+    def f(p: np.ndarray) -> np.ndarray:
+        rho, _ = _rho_theta(p)
+        head = _smax(_ellipsoid(p - np.array([0.0, 0.0, stem_h]), (cap, cap, 0.6 * cap)),
+                     stem_h - p[:, 2], 0.1)
+        column = _smax(rho - stem, np.abs(p[:, 2] - stem_h / 2) - stem_h / 2, 0.05)
+        return _smin(head, column, 0.12)
+
+    return f, cap + 0.6
+
+
+def _radish(rng: np.random.Generator) -> tuple[Field, float]:
+    radius, tail = rng.uniform(0.8, 1.0), rng.uniform(0.6, 1.0)
+    t = np.linspace(0.0, 1.0, 200)
+    centre = np.stack([radius * 0.8 + tail * t, np.zeros_like(t), np.zeros_like(t)], axis=1)
+    taper = 0.35 * radius * (1.0 - t) + 0.03
+
+    def f(p: np.ndarray) -> np.ndarray:
+        body = np.linalg.norm(p, axis=1) - radius
+        return _smin(body, _tube(p, centre, taper), 0.2)
+
+    return f, radius + tail + 0.6
+
+
+def _pineapple_ring(rng: np.random.Generator) -> tuple[Field, float]:
+    outer, inner, half = rng.uniform(1.1, 1.4), rng.uniform(0.25, 0.4), rng.uniform(0.2, 0.3)
+
+    def f(p: np.ndarray) -> np.ndarray:
+        rho, _ = _rho_theta(p)
+        ring = np.maximum(rho - outer, inner - rho)
+        return _smax(ring, np.abs(p[:, 2]) - half, 0.05)
+
+    return f, outer + 0.5
+
+
+def _onigiri(rng: np.random.Generator) -> tuple[Field, float]:
+    size, half = rng.uniform(1.0, 1.2), rng.uniform(0.35, 0.5)
+    normals = np.array([[np.cos(a), np.sin(a)] for a in np.radians([270.0, 30.0, 150.0])])
+
+    def f(p: np.ndarray) -> np.ndarray:
+        # a rounded triangle standing on one side, about y: its faces are the triangle's sides
+        xz = np.stack([p[:, 0], p[:, 2]], axis=1)
+        sides = xz @ normals.T - 0.5 * size
+        k = 0.25
+        triangle = k * np.log(np.exp(sides / k).sum(axis=1))
+        return _smax(triangle, np.abs(p[:, 1]) - half, 0.15)
+
+    return f, size + 0.6
+
+
+def _sausage(rng: np.random.Generator) -> tuple[Field, float]:
+    length, radius, bend = rng.uniform(2.2, 3.0), rng.uniform(0.25, 0.35), rng.uniform(0.2, 0.6)
+    t = np.linspace(-1.0, 1.0, 300)
+    centre = np.stack([length / 2 * t, bend * (1 - t**2), np.zeros_like(t)], axis=1)
+    radius_t = radius * np.sqrt(np.clip(1.0 - t**10, 0.05, 1.0))
+    return (lambda p: _tube(p, centre, radius_t)), length / 2 + radius + 0.6
+
+
+def _drumstick(rng: np.random.Generator) -> tuple[Field, float]:
+    length, bulb, bone = rng.uniform(2.0, 2.6), rng.uniform(0.55, 0.7), rng.uniform(0.15, 0.2)
+    t = np.linspace(0.0, 1.0, 300)
+    centre = np.stack([length * (t - 0.5), np.zeros_like(t), np.zeros_like(t)], axis=1)
+    radius = bone + (bulb - bone) * np.sin(np.pi * np.clip(t / 0.75, 0, 1)) ** 0.7 * (t < 0.75)
+    radius = np.maximum(radius, bone)
+    return (lambda p: _tube(p, centre, radius)), length / 2 + bulb + 0.5
+
+
 FAMILIES: dict[str, Family] = {
     "egg": _egg, "tomato": _tomato, "potato": _potato, "muffin": _muffin, "loaf": _loaf,
     "cookie": _cookie, "roll": _roll, "carrot": _carrot, "strawberry": _strawberry,
     "mango": _mango, "peach": _peach, "dumpling": _dumpling, "brownie": _brownie,
-    "onion": _onion,
+    "onion": _onion, "kiwi": _kiwi, "plum": _plum, "sweet_potato": _sweet_potato,
+    "cucumber": _cucumber, "eggplant": _eggplant, "scone": _scone, "meatball": _meatball,
+    "croquette": _croquette, "sushi_roll": _sushi_roll, "macaron": _macaron,
+    "mushroom": _mushroom, "radish": _radish, "pineapple_ring": _pineapple_ring,
+    "onigiri": _onigiri, "sausage": _sausage, "drumstick": _drumstick,
 }
 """Training shape families (none of them a benchmark item)."""
 
