@@ -3,7 +3,12 @@
 import numpy as np
 import pytest
 
-from volec.completion.preprocess import fit_normalization, remove_statistical_outliers, resample
+from volec.completion.preprocess import (
+    fit_normalization,
+    fit_upright_normalization,
+    remove_statistical_outliers,
+    resample,
+)
 from volec.geometry import rotvec_to_matrix
 
 
@@ -35,6 +40,25 @@ def test_the_same_shape_in_any_pose_normalizes_to_the_same_cloud():
     b = fit_normalization(moved).apply(moved)
     np.testing.assert_allclose(a, b, atol=1e-9)
     assert np.linalg.det(fit_normalization(moved).rotation) == pytest.approx(1.0)
+
+
+def test_the_upright_frame_puts_the_table_normal_on_z_whatever_the_shape():
+    # the cloud's largest spread is vertical: PCA would put it on x; upright keeps it on z,
+    # with x along its longer horizontal side, in any pose about any up
+    rng = np.random.default_rng(1)
+    local = rng.normal(size=(2000, 3)) * [0.02, 0.01, 0.05]
+    R = rotvec_to_matrix(np.array([0.4, -1.1, 2.0]))
+    up = R[:, 2]
+    xyz = local @ R.T + [0.3, -0.2, 1.0]
+    norm = fit_upright_normalization(xyz, 3.0 * up)
+    np.testing.assert_allclose(norm.rotation[2], up, atol=1e-12)
+    assert abs(norm.rotation[0] @ R[:, 0]) == pytest.approx(1.0, abs=1e-2)
+    assert np.linalg.det(norm.rotation) == pytest.approx(1.0)
+    np.testing.assert_allclose(norm.rotation @ norm.rotation.T, np.eye(3), atol=1e-12)
+    y = norm.apply(xyz)
+    np.testing.assert_allclose(norm.invert(y), xyz, atol=1e-12)
+    assert np.linalg.norm(y, axis=1).max() == pytest.approx(1.0)
+    np.testing.assert_allclose(y[:, 2], (xyz - xyz.mean(axis=0)) @ up / norm.scale, atol=1e-12)
 
 
 def test_resample_gives_exactly_n_points_from_the_cloud():

@@ -56,6 +56,29 @@ def fit_normalization(xyz: np.ndarray) -> Normalization:
     return Normalization(centre, scale, axes)
 
 
+def fit_upright_normalization(xyz: np.ndarray, up: np.ndarray) -> Normalization:
+    """As :func:`fit_normalization`, but z is ``up`` (the support plane's normal) whatever the
+    cloud's shape, and x the horizontal principal axis (its sign by the third moment), so a
+    network sees where the table is: a round item's PCA frame is arbitrary, and with it
+    which side is the unseen underside."""
+    xyz = np.asarray(xyz, float)
+    if len(xyz) < 4:
+        raise DataError(f"a cloud of {len(xyz)} points cannot be normalised; need 4 or more")
+    z = np.asarray(up, float) / np.linalg.norm(up)
+    centre = xyz.mean(axis=0)
+    centred = xyz - centre
+    scale = float(np.linalg.norm(centred, axis=1).max())
+    if scale <= 0:
+        raise DataError("all points coincide; the cloud has no extent")
+    flat = centred - np.outer(centred @ z, z)
+    _, vectors = np.linalg.eigh(flat.T @ flat)
+    x = vectors[:, -1] - (vectors[:, -1] @ z) * z
+    x /= np.linalg.norm(x)
+    if np.sum((centred @ x) ** 3) < 0:
+        x = -x
+    return Normalization(centre, scale, np.stack([x, np.cross(z, x), z]))
+
+
 def resample(xyz: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
     """Exactly ``n`` points: a uniform random subset, or every point plus random repeats."""
     xyz = np.asarray(xyz, float)
