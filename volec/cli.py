@@ -157,7 +157,9 @@ def _cmd_complete(args: argparse.Namespace) -> int:
         model, meta = load_checkpoint(checkpoint)
     except FileNotFoundError as e:
         raise VolecError(str(e)) from e
-    result = complete_cloud(partial, model, CompletionConfig(merge_partial=not args.network_only))
+    up = None if args.up is None else np.asarray(args.up, float)
+    result = complete_cloud(partial, model, CompletionConfig(merge_partial=not args.network_only),
+                            up)
     # the predicted points' normals are unknown (NaN) until estimated here
     write_ply(with_normals(result.cloud) if result.cloud.normals is not None else result.cloud,
               out)
@@ -403,6 +405,9 @@ def build_parser() -> argparse.ArgumentParser:
     complete.add_argument("--checkpoint", help="a checkpoint other than the shipped one")
     complete.add_argument("--network-only", action="store_true",
                           help="write only the predicted points, not the partial's")
+    complete.add_argument("--up", nargs=3, type=float, metavar=("X", "Y", "Z"),
+                          help="the support plane's normal in the cloud's frame (needed by a "
+                          "checkpoint trained upright)")
     complete.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
     complete.set_defaults(func=_cmd_complete)
 

@@ -288,7 +288,7 @@ def completed_cloud(masked: PointCloud, support: SupportPlane | None, up: np.nda
         return rotation_completion(masked, plane_up, space, cfg.completion)
     if method == "auto" and plane_up is not None:
         return symmetry_then_network(masked, plane_up, model, space, cfg.completion)
-    return None if model is None else complete_cloud(masked, model, cfg.completion)
+    return None if model is None else complete_cloud(masked, model, cfg.completion, plane_up)
 
 
 def symmetry_then_network(masked: PointCloud, up: np.ndarray, model: SymmCompletion | None,
@@ -302,7 +302,7 @@ def symmetry_then_network(masked: PointCloud, up: np.ndarray, model: SymmComplet
     if model is None:
         return turned if turned.summary["symmetric"] else None
     start = turned.cloud if turned.summary["symmetric"] else masked
-    network = complete_cloud(start, model, cfg)
+    network = complete_cloud(start, model, cfg, up)
     added = len(start) - len(masked)
     summary = {**network.summary, "partial_points": len(masked),
                "predicted_kept": added + network.summary["predicted_kept"],

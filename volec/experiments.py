@@ -416,6 +416,7 @@ def completion_experiment(checkpoint: Path, root: Path, quick: bool) -> pd.DataF
     the settings and the code."""
 
     from volec.completion.complete import complete_cloud
+    from volec.completion.data import TABLE_UP
     from volec.completion.mirror import mirror_complete
     from volec.completion.train import load_checkpoint
     from volec.metrics import chamfer_distance
@@ -436,12 +437,12 @@ def completion_experiment(checkpoint: Path, root: Path, quick: bool) -> pd.DataF
             row: dict[str, Any] = {k: view[k] for k in ("kind", "name", "view")}
             row["partial_points"] = len(partial)
             start = time.perf_counter()
-            mirrored = mirror_complete(partial, up=np.array([0.0, 0.0, 1.0]))
+            mirrored = mirror_complete(partial, up=TABLE_UP)
             row["mirror_s"] = time.perf_counter() - start
             start = time.perf_counter()
-            network = complete_cloud(PointCloud(partial), model, network_cfg)
+            network = complete_cloud(PointCloud(partial), model, network_cfg, TABLE_UP)
             row["network_s"] = time.perf_counter() - start
-            done = complete_cloud(PointCloud(partial), model, pipeline_cfg)
+            done = complete_cloud(PointCloud(partial), model, pipeline_cfg, TABLE_UP)
             clouds = {"partial": partial, "mirror": mirrored, "network": network.predicted_xyz,
                       "completed": done.cloud.xyz}
             for name, xyz in clouds.items():
@@ -481,6 +482,7 @@ def completion_examples(checkpoint: Path, names: list[str], quick: bool
     baseline, the completed cloud as the pipeline makes it and the complete surface samples
     (metres)."""
     from volec.completion.complete import complete_cloud
+    from volec.completion.data import TABLE_UP
     from volec.completion.mirror import mirror_complete
     from volec.completion.train import load_checkpoint
     from volec.pointcloud import PointCloud
@@ -493,9 +495,9 @@ def completion_examples(checkpoint: Path, names: list[str], quick: bool
     out = {}
     for name in names:
         partial = chosen[name]["partial"]
-        done = complete_cloud(PointCloud(partial), model, pipeline_completion())
+        done = complete_cloud(PointCloud(partial), model, pipeline_completion(), TABLE_UP)
         out[name] = {"partial": partial,
-                     "mirror": mirror_complete(partial, up=np.array([0.0, 0.0, 1.0])),
+                     "mirror": mirror_complete(partial, up=TABLE_UP),
                      "network": done.cloud.xyz, "complete": chosen[name]["complete"]}
     return out
 

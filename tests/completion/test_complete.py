@@ -2,6 +2,7 @@
 
 
 import numpy as np
+import pytest
 import torch
 
 from volec.cli import main
@@ -99,3 +100,16 @@ def test_missing_only_keeps_the_predicted_points_away_from_the_partial():
     n = len(partial)
     np.testing.assert_array_equal(result.cloud.normals[:n], normals)
     assert np.isnan(result.cloud.normals[n:]).all()
+
+
+def test_a_model_trained_upright_is_framed_about_the_given_up_and_refuses_without_it():
+    from volec.errors import DataError
+
+    partial = np.random.default_rng(4).normal(size=(600, 3)) * [0.02, 0.01, 0.03]
+    model = _Identity()
+    model.cfg = ModelConfig(n_input=256, input_frame="upright")
+    up = np.array([0.0, 0.6, 0.8])
+    result = complete_cloud(PointCloud(partial), model, CompletionConfig(), up)
+    np.testing.assert_allclose(result.normalization.rotation[2], up, atol=1e-12)
+    with pytest.raises(DataError, match="upright"):
+        complete_cloud(PointCloud(partial), model, CompletionConfig())

@@ -49,3 +49,27 @@ def test_holes_are_balls_around_seen_points_of_the_drawn_size():
     assert holes[seen].sum() > 0.5 * holes.sum()  # centred on seen points
     none = in_holes(points, seen, 2 * RADIUS_M, rng, ViewConfig(holes=(0, 0)))
     assert not none.any()
+
+
+def test_an_upright_dataset_frames_each_pair_about_the_table_normal(tmp_path):
+    from volec.completion.data import TABLE_UP, CompletionDataset
+    from volec.completion.preprocess import fit_upright_normalization, resample
+
+    rng = np.random.default_rng(3)
+    complete = rng.normal(size=(400, 3)) * [0.01, 0.02, 0.04] + [0.0, 0.0, 0.05]
+    partial = complete[complete[:, 0] > 0]
+    path = tmp_path / "shape.npz"
+    np.savez(path, complete=complete, partial_points=partial,
+             partial_sizes=np.array([len(partial)]))
+    got_partial, got_complete = CompletionDataset([path], 64, 128, "upright").pair(
+        0, np.random.default_rng(0))
+    draw = np.random.default_rng(0)  # the pair draws the complete cloud first, then the partial
+    want_complete = resample(complete, 128, draw)
+    want_partial = resample(partial, 64, draw)
+    norm = fit_upright_normalization(partial, TABLE_UP)
+    np.testing.assert_allclose(got_complete, norm.apply(want_complete), atol=1e-12)
+    np.testing.assert_allclose(got_partial, norm.apply(want_partial), atol=1e-12)
+    # the largest spread is vertical: framed by PCA it would lie along x instead
+    pca_partial, _ = CompletionDataset([path], 64, 128).pair(0, np.random.default_rng(0))
+    assert np.var(got_partial[:, 2]) > np.var(got_partial[:, 0])
+    assert np.var(pca_partial[:, 0]) > np.var(pca_partial[:, 2])

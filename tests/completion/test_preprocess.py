@@ -6,6 +6,7 @@ import pytest
 from volec.completion.preprocess import (
     fit_normalization,
     fit_upright_normalization,
+    frame_normalization,
     remove_statistical_outliers,
     resample,
 )
@@ -75,3 +76,15 @@ def test_statistical_outliers_are_removed():
     xyz = np.vstack([_cloud(), [[5.0, 5.0, 5.0]]])
     kept = remove_statistical_outliers(xyz)
     assert len(kept) >= 480 and not np.any(np.all(kept == [5.0, 5.0, 5.0], axis=1))
+
+
+def test_the_frame_switch_refuses_an_unknown_frame_and_upright_without_up():
+    from volec.errors import DataError
+
+    xyz = _cloud()
+    np.testing.assert_allclose(frame_normalization(xyz, "pca", None).rotation,
+                               fit_normalization(xyz).rotation)
+    with pytest.raises(DataError, match="support plane"):
+        frame_normalization(xyz, "upright", None)
+    with pytest.raises(DataError, match="unknown input frame"):
+        frame_normalization(xyz, "sideways", np.array([0.0, 0.0, 1.0]))

@@ -26,6 +26,7 @@ from volec.completion.model import SymmCompletion
 from volec.completion.preprocess import (
     Normalization,
     fit_normalization,
+    frame_normalization,
     remove_statistical_outliers,
     resample,
 )
@@ -78,12 +79,14 @@ class Completion:
 
 
 def complete_cloud(partial: PointCloud, model: SymmCompletion,
-                   cfg: CompletionConfig | None = None) -> Completion:
-    """Complete ``partial`` with ``model`` (see the module docstring)."""
+                   cfg: CompletionConfig | None = None, up: np.ndarray | None = None
+                   ) -> Completion:
+    """Complete ``partial`` with ``model`` (see the module docstring); ``up``, the support
+    plane's normal, frames the input for a model trained upright (ignored otherwise)."""
     cfg = cfg or CompletionConfig()
     _check_partial(partial, cfg)
     start = time.perf_counter()
-    norm = fit_normalization(partial.xyz)
+    norm = frame_normalization(partial.xyz, model.cfg.input_frame, up)
     rng = np.random.default_rng(cfg.seed)
     x = norm.apply(resample(partial.xyz, model.cfg.n_input, rng))
     device = next(model.parameters()).device

@@ -19,7 +19,7 @@ import numpy as np
 import trimesh
 
 from volec.capture import Capture, Frame, Intrinsics
-from volec.completion.preprocess import fit_normalization, resample
+from volec.completion.preprocess import frame_normalization, resample
 from volec.geometry import look_at_opencv
 from volec.io import write_bytes_atomic
 from volec.metrics import sample_surface, sample_surface_with_normals, views_seeing
@@ -159,16 +159,22 @@ def write_dataset(shapes: list[tuple[str, int]], views: int, out_dir: Path,
     return paths
 
 
+TABLE_UP = np.array([0.0, 0.0, 1.0])
+"""The training shapes' up: they rest on the table at z = 0."""
+
+
 class CompletionDataset:
     """Normalized (partial, complete) pairs from the files of :func:`write_dataset`.
 
     Item ``i`` is view ``i % views`` of shape ``i // views``; each draw resamples the partial
     to ``n_input`` points and the complete cloud to ``n_complete`` with ``rng``, and maps both
-    with the partial's normalization, as inference will.
+    with the partial's normalization in ``frame`` (the shapes rest on the table, up
+    :data:`TABLE_UP`), as inference will.
     """
 
-    def __init__(self, paths: list[Path], n_input: int, n_complete: int) -> None:
-        self.n_input, self.n_complete = n_input, n_complete
+    def __init__(self, paths: list[Path], n_input: int, n_complete: int,
+                 frame: str = "pca") -> None:
+        self.n_input, self.n_complete, self.frame = n_input, n_complete, frame
         self.partials: list[np.ndarray] = []
         self.completes: list[np.ndarray] = []
         self.owner: list[int] = []
@@ -186,7 +192,7 @@ class CompletionDataset:
     def pair(self, i: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """(partial (n_input, 3), complete (n_complete, 3)) of item ``i``, normalized."""
         partial = self.partials[i]
-        norm = fit_normalization(partial)
+        norm = frame_normalization(partial, self.frame, TABLE_UP)
         complete = resample(self.completes[self.owner[i]], self.n_complete, rng)
         return norm.apply(resample(partial, self.n_input, rng)), norm.apply(complete)
 

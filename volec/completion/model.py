@@ -42,6 +42,11 @@ class ModelConfig:
     """Attention heads in SGFormer."""
     upsample: tuple[int, ...] = (2, 4)
     """Per refinement stage, how many children each point gets (one stage per entry)."""
+    input_frame: str = "pca"
+    """How the partial is framed before the network sees it
+    (:data:`volec.completion.preprocess.FRAMES`): ``pca``, its own principal axes (the
+    paper's; checkpoints that do not say are framed so), or ``upright``, z along the support
+    plane's normal (the network then knows which side the table is on)."""
 
     @property
     def n_output(self) -> int:
@@ -55,6 +60,9 @@ PRESETS: dict[str, ModelConfig] = {
     # Trains on a 2-core CPU in about an hour.
     "cpu": ModelConfig(n_input=1024, n_keypoints=128, knn=16, width=96, heads=4,
                        upsample=(2, 4)),
+    # The cpu sizes with the partial framed upright (benchmarks/bench_completion_frame.py).
+    "cpu_upright": ModelConfig(n_input=1024, n_keypoints=128, knn=16, width=96, heads=4,
+                               upsample=(2, 4), input_frame="upright"),
 }
 
 

@@ -79,6 +79,24 @@ def fit_upright_normalization(xyz: np.ndarray, up: np.ndarray) -> Normalization:
     return Normalization(centre, scale, np.stack([x, np.cross(z, x), z]))
 
 
+FRAMES = ("pca", "upright")
+"""How a partial is framed for the network: by its own principal axes (the paper's), or
+upright about the support plane's normal."""
+
+
+def frame_normalization(xyz: np.ndarray, frame: str, up: np.ndarray | None) -> Normalization:
+    """The normalization of ``xyz`` in ``frame`` (one of :data:`FRAMES`); ``upright`` needs
+    ``up``, the support plane's normal."""
+    if frame == "pca":
+        return fit_normalization(xyz)
+    if frame != "upright":
+        raise DataError(f"unknown input frame {frame!r}; expected one of {', '.join(FRAMES)}")
+    if up is None:
+        raise DataError("this completion checkpoint frames its input upright: it needs the "
+                        "support plane's normal or the capture's up direction")
+    return fit_upright_normalization(xyz, up)
+
+
 def resample(xyz: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
     """Exactly ``n`` points: a uniform random subset, or every point plus random repeats."""
     xyz = np.asarray(xyz, float)

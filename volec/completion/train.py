@@ -71,6 +71,8 @@ class TrainConfig:
 
 PRESETS: dict[str, TrainConfig] = {
     "cpu": TrainConfig(),
+    # The cpu recipe with the partials framed upright (benchmarks/bench_completion_frame.py).
+    "cpu_upright": TrainConfig(model="cpu_upright"),
     "paper": TrainConfig(model="paper", steps=30000, batch_size=16, lr=1e-4,
                          train_per_family=8, val_every=1000),
     # The test suite's smoke run: two steps on one shape.
@@ -147,8 +149,9 @@ def datasets(cfg: TrainConfig, model_cfg: ModelConfig, data_dir: Path,
                                 cfg.views_per_shape, folder, view_cfg, cfg.data_workers, progress)
     val_paths = write_dataset(training_shapes(cfg.val_per_family, cfg.val_first_seed, families),
                               cfg.views_per_shape, folder, view_cfg, cfg.data_workers, progress)
-    return (CompletionDataset(train_paths, model_cfg.n_input, model_cfg.n_output),
-            CompletionDataset(val_paths, model_cfg.n_input, model_cfg.n_output))
+    frame = model_cfg.input_frame
+    return (CompletionDataset(train_paths, model_cfg.n_input, model_cfg.n_output, frame),
+            CompletionDataset(val_paths, model_cfg.n_input, model_cfg.n_output, frame))
 
 
 def train(cfg: TrainConfig, checkpoint: Path, data_dir: Path, progress: bool = True
