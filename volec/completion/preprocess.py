@@ -35,10 +35,9 @@ class Normalization:
         return np.asarray(xyz, float) * self.scale @ self.rotation + self.centre
 
 
-def fit_normalization(xyz: np.ndarray) -> Normalization:
-    """Centre on the centroid, scale the farthest point to radius 1, rotate the principal axes
-    onto x, y, z. Each axis's sign makes the cloud's third moment along it non-negative (and
-    z completes a right-handed frame), so the same cloud always gets the same frame."""
+def _centred(xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """(centroid, the points less it, the farthest point's distance from it); a clear error
+    for clouds that cannot be normalised."""
     xyz = np.asarray(xyz, float)
     if len(xyz) < 4:
         raise DataError(f"a cloud of {len(xyz)} points cannot be normalised; need 4 or more")
@@ -47,6 +46,14 @@ def fit_normalization(xyz: np.ndarray) -> Normalization:
     scale = float(np.linalg.norm(centred, axis=1).max())
     if scale <= 0:
         raise DataError("all points coincide; the cloud has no extent")
+    return centre, centred, scale
+
+
+def fit_normalization(xyz: np.ndarray) -> Normalization:
+    """Centre on the centroid, scale the farthest point to radius 1, rotate the principal axes
+    onto x, y, z. Each axis's sign makes the cloud's third moment along it non-negative (and
+    z completes a right-handed frame), so the same cloud always gets the same frame."""
+    centre, centred, scale = _centred(xyz)
     _, vectors = np.linalg.eigh(centred.T @ centred)
     axes = vectors[:, ::-1].T.copy()  # rows, largest variance first
     for i in range(2):
@@ -61,15 +68,8 @@ def fit_upright_normalization(xyz: np.ndarray, up: np.ndarray) -> Normalization:
     cloud's shape, and x the horizontal principal axis (its sign by the third moment), so a
     network sees where the table is: a round item's PCA frame is arbitrary, and with it
     which side is the unseen underside."""
-    xyz = np.asarray(xyz, float)
-    if len(xyz) < 4:
-        raise DataError(f"a cloud of {len(xyz)} points cannot be normalised; need 4 or more")
+    centre, centred, scale = _centred(xyz)
     z = np.asarray(up, float) / np.linalg.norm(up)
-    centre = xyz.mean(axis=0)
-    centred = xyz - centre
-    scale = float(np.linalg.norm(centred, axis=1).max())
-    if scale <= 0:
-        raise DataError("all points coincide; the cloud has no extent")
     flat = centred - np.outer(centred @ z, z)
     _, vectors = np.linalg.eigh(flat.T @ flat)
     x = vectors[:, -1] - (vectors[:, -1] @ z) * z
