@@ -456,6 +456,15 @@ def closed_surface(field_m: np.ndarray, lower: np.ndarray, voxel_m: float) -> tr
     return mesh
 
 
+def offsets_along_normals(points: np.ndarray, observed: PointCloud, index: np.ndarray
+                          ) -> np.ndarray:
+    """(N, k) how far each of the ``points`` (N, 3) lies in front of (positive) or behind
+    (negative) each of its observed neighbours ``index`` (N, k), along that neighbour's
+    normal."""
+    offsets = points[:, None, :] - observed.xyz[index]
+    return np.einsum("nkj,nkj->nk", offsets, observed.normals[index])
+
+
 def behind_observed(points: np.ndarray, observed: PointCloud, reach_m: float,
                     neighbours: int = 8) -> np.ndarray:
     """(N,) a field that is negative for the ``points`` (N, 3) behind the ``observed``
@@ -473,8 +482,7 @@ def behind_observed(points: np.ndarray, observed: PointCloud, reach_m: float,
     near = np.isfinite(distance[:, 0])
     found = np.isfinite(distance[near])
     index = np.where(found, index[near], 0)
-    offsets = points[near, None, :] - observed.xyz[index]
-    along = np.einsum("nkj,nkj->nk", offsets, observed.normals[index])
+    along = offsets_along_normals(points[near], observed, index)
     along = np.where(found, along, 0.0).sum(axis=1) / found.sum(axis=1)
     out[near] = np.maximum(along, distance[near, 0] - reach_m)
     return out

@@ -37,7 +37,7 @@ import numpy as np
 import trimesh
 
 from volec.capture import Intrinsics
-from volec.meshing import SilhouetteView, SupportPlane, silhouette_field
+from volec.meshing import SilhouetteView, SupportPlane, offsets_along_normals, silhouette_field
 from volec.pointcloud import PointCloud
 
 EMPTY, FOOD, UNKNOWN = 0, 1, 2
@@ -218,8 +218,7 @@ def surface_side(points: np.ndarray, cloud: PointCloud, cfg: SpaceConfig) -> np.
     k = min(cfg.surface_neighbours, len(cloud))
     _, idx = tree.query(points[near], k=k)
     idx = idx.reshape(len(near), k)
-    offsets = points[near, None, :] - cloud.xyz[idx]
-    along = np.einsum("nkj,nkj->n", offsets, cloud.normals[idx]) / k
+    along = offsets_along_normals(points[near], cloud, idx).sum(axis=1) / k
     side[near] = np.where(along > cfg.front_margin_m, 1, np.where(along < 0, -1, 0))
     return side
 
