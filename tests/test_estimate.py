@@ -171,3 +171,26 @@ def test_auto_completion_turns_a_symmetric_item_then_asks_the_network():
     assert network is not None and completion_method_used(network, auto) == "network"
     assert not network.summary["rotation"]["symmetric"]
 
+
+
+def test_an_upright_network_without_plane_or_up_skips_completion_and_says_why():
+    from tests.completion.test_complete import _Identity
+    from tests.test_space import _scene
+    from volec.completion.model import ModelConfig
+    from volec.estimate import EstimateConfig, food_mesh, network_lacks_up
+
+    cloud, _ = _scene(360.0)
+    upright, pca = _Identity(), _Identity()
+    upright.cfg = ModelConfig(n_input=256, input_frame="upright")
+    cfg = EstimateConfig(completion_method="network")
+    no_plane = (None, "no plane in this test")
+    food = food_mesh(cloud, no_plane, None, upright, cfg)
+    assert food.completion_summary is None and len(food.cloud) == len(cloud)
+    assert "upright" in food.completion_problem
+    # the capture's up is enough; a PCA-framed network needs none; nor do mirror and off
+    assert network_lacks_up(upright, None, np.array([0.0, 0.0, 1.0]), cfg) is None
+    assert network_lacks_up(pca, None, None, cfg) is None
+    assert network_lacks_up(upright, None, None, EstimateConfig(completion_method="mirror")) \
+        is None
+    with_pca = food_mesh(cloud, no_plane, None, pca, cfg)
+    assert with_pca.completion_problem is None and with_pca.completion_summary is not None

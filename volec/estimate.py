@@ -28,6 +28,7 @@ written atomically, and an earlier result made from other inputs is refused unle
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -92,6 +93,8 @@ from volec.volume import volume_ml
 RESULT_FILE = "result.json"
 MODULES = ("volec.estimate",)
 """The code that makes an estimate (with everything it imports: all the stages)."""
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -183,6 +186,8 @@ class FoodMesh:
     (None without completion)."""
     seconds: dict[str, float]
     """Wall time of ``completion_s`` (0 without) and ``meshing_s`` (support plane included)."""
+    completion_problem: str | None = None
+    """Why completion was asked for but skipped (None when it ran or was off)."""
 
 
 @dataclass(frozen=True)
@@ -266,6 +271,19 @@ def uses_network(cfg: EstimateConfig) -> bool:
     return cfg.use_completion and cfg.completion_method in ("network", "auto")
 
 
+def network_lacks_up(model: SymmCompletion | None, support: SupportPlane | None,
+                     up: np.ndarray | None, cfg: EstimateConfig) -> str | None:
+    """Why the network cannot complete this capture (None when it can or is not used): a
+    checkpoint that frames its input upright needs the support plane's normal or the
+    capture's up, and a capture with neither is completed by nothing (it is already
+    flagged ``no_support_plane``)."""
+    if (uses_network(cfg) and model is not None and model.cfg.input_frame == "upright"
+            and support is None and up is None):
+        return ("the completion network frames its input upright, and neither a support "
+                "plane nor the capture's up direction (world_up) is known")
+    return None
+
+
 def completed_cloud(masked: PointCloud, support: SupportPlane | None, up: np.ndarray | None,
                     model: SymmCompletion | None, space: SpaceGrid | None, cfg: EstimateConfig
                     ) -> Completion | None:
@@ -333,7 +351,10 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     start = time.perf_counter()
     plane, problem = support
     cloud, summary = masked, None
-    completion = completed_cloud(masked, plane, up, model, space, cfg)
+    skipped = network_lacks_up(model, plane, up, cfg)
+    if skipped is not None:
+        log.warning("completion skipped: %s", skipped)
+    completion = None if skipped else completed_cloud(masked, plane, up, model, space, cfg)
     completion_s = time.perf_counter() - start
     if completion is not None:
         cloud = completion.cloud
@@ -345,7 +366,8 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
         share = completion_share(mesh.mesh, cloud, len(masked), cfg.completion_share_pitch_m)
     meshing_s = time.perf_counter() - start - completion_s
     return FoodMesh(cloud, mesh, volume, plane, problem, summary, share,
-                    {"completion_s": round(completion_s, 2), "meshing_s": round(meshing_s, 2)})
+                    {"completion_s": round(completion_s, 2), "meshing_s": round(meshing_s, 2)},
+                    skipped)
 
 
 def food_silhouettes(capture: Capture, stages: StageResults, cfg: EstimateConfig
@@ -376,6 +398,8 @@ def _notes(capture: Capture, stages: StageResults, food: FoodMesh, scale: ScaleC
         notes.append(scale.warning)
     for name, why in stages.masked.report.get("unusable_masks", {}).items():
         notes.append(f"the mask of {name} was left out: {why}")
+    if food.completion_problem is not None:
+        notes.append(f"completion was skipped: {food.completion_problem}")
     if not use_completion:
         notes.append("completion was off: the unseen underside is closed by the support plane "
                      "and Poisson alone (the VolE-style baseline)")

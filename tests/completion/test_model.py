@@ -64,3 +64,5 @@ def test_two_step_cpu_training_smoke(smoke_checkpoint):
     assert meta["info"]["step"] in (1, 2) and np.isfinite(meta["info"]["val_cd_l1"])
     assert model.cfg == PRESETS["cpu"]
     assert meta["train_config"]["steps"] == 2
+    assert meta["info"]["device"] == "cpu"
+    assert all(t.device.type == "cpu" for t in model.state_dict().values())

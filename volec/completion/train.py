@@ -94,14 +94,15 @@ def learning_rate(cfg: TrainConfig, step: int) -> float:
 def evaluate(model: SymmCompletion, data: CompletionDataset, batch_size: int,
              seed: int = 12345) -> dict[str, float]:
     """Mean Chamfer-L1 (normalized units) over ``data``: of the final output and of the
-    partial input itself, with fixed resampling."""
+    partial input itself, with fixed resampling, on the model's device."""
     rng = np.random.default_rng(seed)
+    device = next(model.parameters()).device
     model.eval()
     out_sum = partial_sum = 0.0
     with torch.no_grad():
         for start in range(0, len(data), batch_size):
             idx = np.arange(start, min(start + batch_size, len(data)))
-            partial, complete = (torch.from_numpy(a) for a in data.batch(idx, rng))
+            partial, complete = (torch.from_numpy(a).to(device) for a in data.batch(idx, rng))
             out_sum += float(chamfer_l1(model(partial)[-1], complete)) * len(idx)
             partial_sum += float(chamfer_l1(partial, complete)) * len(idx)
     model.train()
@@ -110,9 +111,11 @@ def evaluate(model: SymmCompletion, data: CompletionDataset, batch_size: int,
 
 def save_checkpoint(path: Path, model: SymmCompletion, train_cfg: TrainConfig,
                     info: dict[str, Any]) -> Path:
-    """Weights, sizes, recipe and scores in one torch file, written atomically."""
+    """Weights (on the CPU, wherever trained), sizes, recipe and scores in one torch file,
+    written atomically."""
     buf = io.BytesIO()
-    torch.save({"model_config": asdict(model.cfg), "state_dict": model.state_dict(),
+    weights = {name: tensor.detach().cpu() for name, tensor in model.state_dict().items()}
+    torch.save({"model_config": asdict(model.cfg), "state_dict": weights,
                 "train_config": asdict(train_cfg), "info": info}, buf)
     write_bytes_atomic(Path(path), buf.getvalue())
     return Path(path)
@@ -154,17 +157,19 @@ def datasets(cfg: TrainConfig, model_cfg: ModelConfig, data_dir: Path,
             CompletionDataset(val_paths, model_cfg.n_input, model_cfg.n_output, frame))
 
 
-def train(cfg: TrainConfig, checkpoint: Path, data_dir: Path, progress: bool = True
-          ) -> dict[str, Any]:
-    """Train, validating and saving the best checkpoint every ``val_every`` steps; the log
-    goes next to the checkpoint as ``.csv``. Returns the final scores."""
+def train(cfg: TrainConfig, checkpoint: Path, data_dir: Path, progress: bool = True,
+          device: str = "cpu") -> dict[str, Any]:
+    """Train on ``device`` (a torch device name: the recipe is the same on any; the pairs
+    are drawn on the CPU from the same seeds), validating and saving the best checkpoint
+    every ``val_every`` steps; the log goes next to the checkpoint as ``.csv``. Returns the
+    final scores."""
     model_cfg = MODEL_PRESETS[cfg.model]
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
     train_data, val_data = datasets(cfg, model_cfg, data_dir, progress=progress)
     log.info("training on %d partial views of %d shapes, validating on %d views",
              len(train_data), len(train_data.completes), len(val_data))
-    model = SymmCompletion(model_cfg)
+    model = SymmCompletion(model_cfg).to(device)
     optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     log_rows: list[dict[str, Any]] = []
     log_path = Path(checkpoint).with_suffix(".csv")
@@ -175,7 +180,8 @@ def train(cfg: TrainConfig, checkpoint: Path, data_dir: Path, progress: bool = T
         for group in optimiser.param_groups:
             group["lr"] = learning_rate(cfg, step)
         idx = rng.integers(len(train_data), size=cfg.batch_size)
-        partial, complete = (torch.from_numpy(a) for a in train_data.batch(idx, rng))
+        partial, complete = (torch.from_numpy(a).to(device)
+                             for a in train_data.batch(idx, rng))
         per_stage = [chamfer_l1(o, complete) for o in model(partial)]
         loss = torch.stack(per_stage).sum()  # the paper's loss: every stage's Chamfer-L1
         optimiser.zero_grad()
@@ -195,7 +201,7 @@ def train(cfg: TrainConfig, checkpoint: Path, data_dir: Path, progress: bool = T
                     "step": step + 1, "val_cd_l1": best,
                     "val_cd_l1_partial": row["val_cd_l1_partial"],
                     "train_views": len(train_data), "val_views": len(val_data),
-                    "elapsed_s": row["elapsed_s"]})
+                    "elapsed_s": row["elapsed_s"], "device": str(device)})
             bar.note(f"loss={loss.item():.4f} val={row['val_cd_l1']:.4f}")
         log_rows.append(row)
         bar.update()
@@ -231,13 +237,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, help="override the preset's seed")
     parser.add_argument("--data-dir", type=Path, help="training data folder "
                         "(default: data/completion-data)")
+    parser.add_argument("--device", default="cpu",
+                        help="torch device to train on, e.g. cuda (default: cpu)")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     cfg = PRESETS[args.preset]
     changes = {k: v for k, v in (("steps", args.steps), ("max_minutes", args.max_minutes),
                                  ("seed", args.seed)) if v is not None}
     cfg = replace(cfg, **changes)
-    result = train(cfg, args.out, args.data_dir or data_dir() / "completion-data")
+    result = train(cfg, args.out, args.data_dir or data_dir() / "completion-data",
+                   device=args.device)
     print(f"best validation CD-L1 {result['best_val_cd_l1']:.5f} (normalized units); "
           f"checkpoint {args.out}, log {result['log']}")
     return 0
