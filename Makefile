@@ -64,7 +64,7 @@ data: setup
 # Retrain the completion network (preset cpu, about an hour on 2 cores) and replace the shipped
 # checkpoint; the training data goes to data/completion-data. `make paper` only uses the checkpoint.
 retrain: setup
-	$(PY) -m volec.completion.train --preset cpu --out volec/completion/weights/symmcompletion_cpu.pt
+	$(PY) -m volec.completion.train --preset cpu_upright --out volec/completion/weights/symmcompletion_cpu.pt
 
 clean:
 	rm -rf build .pytest_cache .ruff_cache

@@ -158,6 +158,10 @@ def _cmd_complete(args: argparse.Namespace) -> int:
     except FileNotFoundError as e:
         raise VolecError(str(e)) from e
     up = None if args.up is None else np.asarray(args.up, float)
+    if up is None and model.cfg.input_frame == "upright":
+        raise VolecError(f"{checkpoint.name} frames its input upright: pass --up X Y Z, the "
+                         "table's normal in the cloud's frame (volec estimate writes it as "
+                         "support_plane.normal in result.json)")
     result = complete_cloud(partial, model, CompletionConfig(merge_partial=not args.network_only),
                             up)
     # the predicted points' normals are unknown (NaN) until estimated here

@@ -113,3 +113,16 @@ def test_a_model_trained_upright_is_framed_about_the_given_up_and_refuses_withou
     np.testing.assert_allclose(result.normalization.rotation[2], up, atol=1e-12)
     with pytest.raises(DataError, match="upright"):
         complete_cloud(PointCloud(partial), model, CompletionConfig())
+
+
+def test_volec_complete_with_the_shipped_upright_checkpoint_needs_up(tmp_path, capsys):
+    from volec.completion.complete import SHIPPED_CHECKPOINT
+    from volec.completion.train import load_checkpoint
+
+    assert load_checkpoint(SHIPPED_CHECKPOINT)[0].cfg.input_frame == "upright"
+    source = write_ply(PointCloud(_cap(n=2000)), tmp_path / "cap.ply")
+    out = tmp_path / "done.ply"
+    assert main(["complete", str(source), "--out", str(out)]) == 2
+    assert "--up" in capsys.readouterr().err and not out.exists()
+    assert main(["complete", str(source), "--out", str(out), "--up", "0", "0", "1"]) == 0
+    assert len(read_ply(out)) > 2000

@@ -6,8 +6,9 @@ the completed cloud in the input's frame (the partial's points plus the network'
 coloured magenta, :data:`volec.pointcloud.PREDICTED_RGB`), the network's points alone, and
 the normalization used.
 
-Steps (paper section III-C): normalize (centre, unit sphere, PCA axes), resample to the
-network's input size, predict, map back with the normalization's exact inverse, then drop
+Steps (paper section III-C): normalize (centre, unit sphere, then the checkpoint's frame: the
+paper's PCA axes, or upright about the support normal ``up``), resample to the network's
+input size, predict, map back with the normalization's exact inverse, then drop
 statistical outliers from the predicted points.
 """
 
@@ -36,8 +37,8 @@ from volec.pointcloud import PREDICTED_RGB, PointCloud
 if TYPE_CHECKING:
     from volec.space import SpaceGrid
 
-#: The checkpoint shipped with volec (trained by ``make retrain``, preset ``cpu``): package
-#: data, found through importlib.resources wherever volec is installed.
+#: The checkpoint shipped with volec (trained by ``make retrain``, preset ``cpu_upright``):
+#: package data, found through importlib.resources wherever volec is installed.
 SHIPPED_CHECKPOINT = Path(str(resources.files("volec.completion") / "weights"
                               / "symmcompletion_cpu.pt"))
 

@@ -5,9 +5,9 @@ In: a :class:`TrainConfig` (model preset, data recipe, optimiser, seed). Out: a 
 loss and the validation Chamfer distance, both written atomically; the training data is
 generated on first use under ``data_dir``.
 
-Run: ``make retrain`` (``python -m volec.completion.train --preset cpu --out
-volec/completion/weights/symmcompletion_cpu.pt``). Validation shapes are other seeds of the
-same families, never trained on.
+Run: ``make retrain`` (``python -m volec.completion.train --preset cpu_upright --out
+volec/completion/weights/symmcompletion_cpu.pt``; ``--device cuda`` where a GPU is at hand).
+Validation shapes are other seeds of the same families, never trained on.
 """
 
 from __future__ import annotations
