@@ -132,6 +132,43 @@ def test_opencv_sift_keypoints_are_in_full_image_pixels(max_size):
         assert np.linalg.norm(found - c, axis=1).min() < 0.1
 
 
+def test_sift_of_images_is_the_same_on_one_thread_or_several_and_keeps_the_order(tmp_path):
+    import cv2
+
+    from volec.sfm import opencv_sift_features, sift_of_images
+
+    rng = np.random.default_rng(2)
+    paths = []
+    for k in range(5):  # textured images, each its own
+        img = cv2.GaussianBlur(rng.uniform(0, 255, (120, 160)), (0, 0), 1.5 + 0.3 * k)
+        paths.append(tmp_path / f"f{k}.png")
+        cv2.imwrite(str(paths[-1]), img.astype(np.uint8))
+    cfg = SfmConfig(max_num_features=300)
+    before = cv2.getNumThreads()
+    try:
+        cv2.setNumThreads(1)
+        serial = sift_of_images(paths, cfg)
+        cv2.setNumThreads(3)
+        pooled = sift_of_images(paths, cfg)
+        assert cv2.getNumThreads() == 3  # OpenCV's setting is given back
+    finally:
+        cv2.setNumThreads(before)
+    cv2.setNumThreads(1)
+    try:  # each image's own features, in the given order
+        alone = [opencv_sift_features(cv2.imread(str(p), cv2.IMREAD_GRAYSCALE), cfg)
+                 for p in paths]
+    finally:
+        cv2.setNumThreads(before)
+    for (xy_a, d_a), (xy_b, d_b), (xy_c, d_c) in zip(serial, pooled, alone, strict=True):
+        assert len(xy_a) > 20
+        np.testing.assert_array_equal(xy_a, xy_b)
+        np.testing.assert_array_equal(d_a, d_b)
+        np.testing.assert_array_equal(xy_a, xy_c)
+        np.testing.assert_array_equal(d_a, d_c)
+    with pytest.raises(SfmError, match="cannot be read"):
+        sift_of_images([tmp_path / "absent.png"], cfg)
+
+
 def test_too_few_frames_is_an_error(tmp_path):
     with pytest.raises(SfmError, match="at least 8"):
         run_sfm(orbit_capture(4), tmp_path)

@@ -76,12 +76,15 @@ def _capture_root(path: Path) -> Path:
 
 
 def limit_threads(threads: int) -> None:
-    """In a worker: let the numerical libraries use at most ``threads`` threads."""
+    """In a worker: let the numerical libraries (BLAS, torch, OpenCV) use at most ``threads``
+    threads."""
     for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ[name] = str(threads)
+    import cv2
     import torch
 
     torch.set_num_threads(threads)
+    cv2.setNumThreads(threads)
 
 
 def estimate_one(capture_path: str, out_dir: str, cfg: BatchConfig, threads: int
