@@ -89,8 +89,12 @@ class SfmConfig:
     orbits, for the same pose accuracy: ``benchmarks/bench_sfm_mapping.py``). A known-pose
     model that keeps fewer than ``min_registered_fraction`` of the frames (AR poses far off)
     falls back to incremental mapping; ``summary.json`` records which one ran."""
-    known_pose_rounds: int = 1
-    """``known_poses``: re-triangulation and bundle adjustment rounds after the first one."""
+    known_pose_rounds: int = 0
+    """``known_poses``: re-triangulation and bundle adjustment rounds after the first one.
+    One more round took the mapping from 6.0 to 11.0 s on three 100-frame orbits (apple,
+    banana, pear) for the same pose accuracy (camera centres 0.90 against 0.90 mm, rotations
+    0.112 against 0.108 degrees, scale 0.18 against 0.19 %: ``benchmarks/bench_sfm_mapping.py
+    --variants known_poses rounds_0``, which then had one round as the default)."""
     max_ar_epipolar_error_deg: float = 3.0
     """``known_poses``: a frame whose verified matches lie farther than this (median Sampson
     distance over its pairs, as an angle at the camera) from the epipolar lines its AR pose
