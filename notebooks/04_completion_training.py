@@ -19,9 +19,12 @@
 # A phone orbit never sees the bottom of the food, and sometimes misses a side. volec completes
 # the masked cloud with SymmCompletion (LSTNet predicts per-key-point symmetry transforms that
 # map seen geometry into the missing region; SGFormer refines and upsamples the result, guided by
-# the partial and the symmetric points), reimplemented in plain torch and trained on this
-# machine's CPU on partial views of procedural foods that are not benchmark items. `make retrain`
-# retrains; this notebook uses the checkpoint shipped with volec (`volec/completion/weights/`).
+# the partial and the symmetric points), reimplemented in plain torch and trained on partial
+# views of procedural foods that are not benchmark items (about an hour on this machine's CPU;
+# the shipped checkpoint was trained on a GPU on the same recipe and seeds). The partial is
+# framed upright, z along the table's normal, where the paper uses its principal axes. `make
+# retrain` retrains; this notebook uses the checkpoint shipped with volec
+# (`volec/completion/weights/`).
 #
 # Scores are Chamfer distances to the complete surface, in millimetres, on views the network
 # never trained on: held-out shapes of the training families, and the 21 benchmark items (kinds
