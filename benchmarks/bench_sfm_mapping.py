@@ -35,7 +35,7 @@ VARIANTS: dict[str, SfmConfig] = {
     "features_2048": SfmConfig(max_num_features=2048),
     "pairs_8": SfmConfig(pair_max_per_image=8),
     "features_2048_pairs_8": SfmConfig(max_num_features=2048, pair_max_per_image=8),
-    "rounds_1": SfmConfig(known_pose_rounds=1),
+    "rounds_0": SfmConfig(known_pose_rounds=0),
     "ba_iterations_15": SfmConfig(ba_max_iterations=15),
 }
 """Named SfM settings (``known_poses`` is the stage's default)."""
