@@ -194,3 +194,12 @@ def test_an_upright_network_without_plane_or_up_skips_completion_and_says_why():
         is None
     with_pca = food_mesh(cloud, no_plane, None, pca, cfg)
     assert with_pca.completion_problem is None and with_pca.completion_summary is not None
+    # the result's warnings say it
+    from types import SimpleNamespace
+
+    from volec.estimate import _notes
+
+    stages = SimpleNamespace(masked=SimpleNamespace(report={}))
+    notes = _notes(None, stages, food, None, True)
+    assert any(n.startswith("completion was skipped") and "upright" in n for n in notes)
+    assert not any("skipped" in n for n in _notes(None, stages, with_pca, None, True))
