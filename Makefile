@@ -61,7 +61,7 @@ notebooks: setup
 data: setup
 	$(VENV)/bin/volec synth all --out data/benchmark
 
-# Retrain the completion network (preset cpu, about an hour on 2 cores) and replace the shipped
+# Retrain the completion network (preset cpu_upright, about an hour on 2 cores) and replace the shipped
 # checkpoint; the training data goes to data/completion-data. `make paper` only uses the checkpoint.
 retrain: setup
 	$(PY) -m volec.completion.train --preset cpu_upright --out volec/completion/weights/symmcompletion_cpu.pt

@@ -1,7 +1,7 @@
 """Does the completion network learn better when it knows where the table is? Trains the
 ``cpu`` recipe twice on the same data, seeds and schedule: with the partials framed by their
-own principal axes (``cpu``, the paper's framing and the shipped checkpoint's) and upright
-(``cpu_upright``: z along the table's normal,
+own principal axes (``cpu``, the paper's framing) and upright (``cpu_upright``, the shipped
+checkpoint's: z along the table's normal,
 :func:`volec.completion.preprocess.fit_upright_normalization`), and writes both validation
 curves (Chamfer-L1, normalized units: the same in any frame) to
 figures/completion_frame.{csv,md}.

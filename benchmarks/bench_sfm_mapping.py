@@ -1,7 +1,8 @@
 """Compare SfM settings on the same captures, in one run: by default the stage's two mappings,
 triangulation from the AR poses plus bundle adjustment (``known_poses``, the default) against
 COLMAP's incremental mapping from scratch (``incremental``, the default before); any of
-:data:`VARIANTS` with ``--variants`` (fewer features, fewer pairs).
+:data:`VARIANTS` with ``--variants`` (fewer features, fewer pairs, no second mapping round,
+fewer bundle-adjustment iterations).
 
 Usage: .venv/bin/python benchmarks/bench_sfm_mapping.py [--items apple banana ...]
        [--scenarios full_orbit sparse ...] [--variants known_poses features_2048 ...]

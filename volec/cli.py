@@ -141,6 +141,7 @@ def _cmd_dense(args: argparse.Namespace) -> int:
 
 def _cmd_complete(args: argparse.Namespace) -> int:
     from volec.completion.complete import SHIPPED_CHECKPOINT, CompletionConfig, complete_cloud
+    from volec.completion.preprocess import frame_needs_up
     from volec.completion.train import load_checkpoint
     from volec.errors import OutputExistsError
     from volec.meshing import with_normals
@@ -158,7 +159,7 @@ def _cmd_complete(args: argparse.Namespace) -> int:
     except FileNotFoundError as e:
         raise VolecError(str(e)) from e
     up = None if args.up is None else np.asarray(args.up, float)
-    if up is None and model.cfg.input_frame == "upright":
+    if up is None and frame_needs_up(model.cfg.input_frame):
         raise VolecError(f"{checkpoint.name} frames its input upright: pass --up X Y Z, the "
                          "table's normal in the cloud's frame (volec estimate writes it as "
                          "support_plane.normal in result.json)")

@@ -48,6 +48,7 @@ from volec.completion.complete import (
     rotation_completion,
 )
 from volec.completion.model import SymmCompletion
+from volec.completion.preprocess import frame_needs_up
 from volec.dense import PRESETS as DENSE_PRESETS
 from volec.dense import DenseConfig
 from volec.errors import VolecError
@@ -277,7 +278,7 @@ def network_lacks_up(model: SymmCompletion | None, support: SupportPlane | None,
     checkpoint that frames its input upright needs the support plane's normal or the
     capture's up, and a capture with neither is completed by nothing (it is already
     flagged ``no_support_plane``)."""
-    if (uses_network(cfg) and model is not None and model.cfg.input_frame == "upright"
+    if (uses_network(cfg) and model is not None and frame_needs_up(model.cfg.input_frame)
             and support is None and up is None):
         return ("the completion network frames its input upright, and neither a support "
                 "plane nor the capture's up direction (world_up) is known")

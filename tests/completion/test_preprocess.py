@@ -88,3 +88,6 @@ def test_the_frame_switch_refuses_an_unknown_frame_and_upright_without_up():
         frame_normalization(xyz, "upright", None)
     with pytest.raises(DataError, match="unknown input frame"):
         frame_normalization(xyz, "sideways", np.array([0.0, 0.0, 1.0]))
+    from volec.completion.preprocess import FRAMES, frame_needs_up
+
+    assert [f for f in FRAMES if frame_needs_up(f)] == ["upright"]

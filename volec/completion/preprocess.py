@@ -84,14 +84,19 @@ FRAMES = ("pca", "upright")
 upright about the support plane's normal."""
 
 
+def frame_needs_up(frame: str) -> bool:
+    """Whether partials framed by ``frame`` need the support plane's normal."""
+    return frame == "upright"
+
+
 def frame_normalization(xyz: np.ndarray, frame: str, up: np.ndarray | None) -> Normalization:
     """The normalization of ``xyz`` in ``frame`` (one of :data:`FRAMES`); ``upright`` needs
     ``up``, the support plane's normal."""
     if frame == "pca":
         return fit_normalization(xyz)
-    if frame != "upright":
+    if frame not in FRAMES:
         raise DataError(f"unknown input frame {frame!r}; expected one of {', '.join(FRAMES)}")
-    if up is None:
+    if up is None and frame_needs_up(frame):
         raise DataError("this completion checkpoint frames its input upright: it needs the "
                         "support plane's normal or the capture's up direction")
     return fit_upright_normalization(xyz, up)
