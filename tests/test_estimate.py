@@ -107,6 +107,41 @@ def test_volec_estimate_with_mirror_completion(small_capture, small_result, tmp_
                                                                       rel=1e-6)
 
 
+def test_methods_on_one_basis_give_what_each_estimate_alone_gives(small_capture, small_result,
+                                                                  tmp_path):
+    # the experiments make the carving views, support plane and space once per item and
+    # estimate every completion method on them: the same volumes and bounds as separately
+    from dataclasses import replace
+
+    from volec.errors import ConfigError
+    from volec.estimate import (
+        EstimateConfig,
+        estimate_basis,
+        estimate_from_basis,
+        estimate_from_stages,
+        food_silhouettes,
+    )
+    from volec.pipeline import run_stages
+
+    capture = small_result[1]
+    shutil.copytree(small_capture / "work" / "sfm", tmp_path / "work" / "sfm")
+    cfg = EstimateConfig()
+    stages = run_stages(capture, tmp_path / "work", cfg.sfm, cfg.dense, cfg.masking,
+                        progress=False)
+    views = food_silhouettes(capture, stages, cfg)
+    basis = estimate_basis(capture, stages, cfg, views)
+    for method in ("mirror", "rotation"):
+        variant = replace(cfg, completion_method=method)
+        shared = estimate_from_basis(capture, stages, None, variant, basis)
+        alone = estimate_from_stages(capture, stages, None, variant, views)
+        assert shared.food.volume_ml == alone.food.volume_ml > 0
+        assert shared.bounds == alone.bounds
+        assert shared.warnings == alone.warnings
+    other = replace(cfg, meshing=replace(cfg.meshing, silhouette_margin_px=2.0))
+    with pytest.raises(ConfigError, match="basis"):
+        estimate_from_basis(capture, stages, None, other, basis)
+
+
 def test_volec_estimate_refuses_bad_input(small_capture, tmp_path, capsys):
     assert main(["estimate", str(tmp_path / "nowhere"), "--out", str(tmp_path / "o")]) == 2
     assert "volec: error" in capsys.readouterr().err

@@ -12,6 +12,7 @@ from volec.geometry import look_at_opencv
 from volec.meshing import (
     MeshingConfig,
     MeshingError,
+    SilhouetteView,
     SupportPlane,
     behind_observed,
     closed_surface,
@@ -263,6 +264,37 @@ def _sphere_on_table(r: float = 0.03, n_views: int = 24):
         T = look_at_opencv(eye, centre, np.array([0.0, 0.0, 1.0]))
         views.append(silhouette_view(_sphere_silhouette(intr, T, centre, r), intr, T))
     return centre, d, table, views
+
+
+def test_views_together_give_what_views_one_by_one_give():
+    # the batched (torch, float32 about the points' centre) distances against the plain
+    # view-by-view float64 ones, on the sphere's 24 views placed 0.3 m from a centre that lies
+    # far from the world's origin (where float32 coordinates would lose micrometres)
+    from volec.meshing import _outside_distances_numpy, outside_distances
+
+    centre, d, _, views = _sphere_on_table()
+    offset = np.array([0.4, -0.6, 0.2])
+    far_views = [SilhouetteView(v.intrinsics, v.T_cam_from_world @ _translation(-offset),
+                                v.signed_distance_px) for v in views]
+    rng = np.random.default_rng(5)
+    points = centre + offset + rng.uniform(-0.2, 0.2, (20000, 3))  # some outside the images
+    batched = outside_distances(points, far_views, 0.5)
+    one_by_one = _outside_distances_numpy(points, far_views, 0.5)
+    seen = np.isfinite(one_by_one)
+    assert 0.2 < seen.mean() < 0.95
+    np.testing.assert_array_equal(np.isfinite(batched), seen)
+    assert np.abs(batched[seen] - one_by_one[seen]).max() < 1e-7  # metres
+    # views of other sizes go one by one, with the same answer
+    small = silhouette_view(np.ones((10, 12), bool), views[0].intrinsics, np.eye(4))
+    mixed = outside_distances(points[:50], [*far_views[:2], small], 0.5)
+    np.testing.assert_array_equal(mixed, _outside_distances_numpy(points[:50],
+                                                                  [*far_views[:2], small], 0.5))
+
+
+def _translation(t: np.ndarray) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = t
+    return T
 
 
 def test_silhouettes_carve_the_unseen_gap_under_a_sphere_on_a_table():

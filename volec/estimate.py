@@ -51,7 +51,7 @@ from volec.completion.model import SymmCompletion
 from volec.completion.preprocess import frame_needs_up
 from volec.dense import PRESETS as DENSE_PRESETS
 from volec.dense import DenseConfig
-from volec.errors import VolecError
+from volec.errors import ConfigError, VolecError
 from volec.geometry import azimuth_span_deg
 from volec.io import folder_lock, write_bytes_atomic, write_json_atomic, write_text_atomic
 from volec.keyframes import KeyframeConfig, choose_keyframes, keyframe_capture
@@ -422,23 +422,66 @@ def estimate_bounds(food: FoodMesh, space: SpaceGrid) -> VolumeBounds:
     return volume_bounds(space, inside, food.volume_ml)
 
 
+@dataclass(frozen=True, eq=False)
+class EstimateBasis:
+    """What every completion method of one estimate shares, computed once from the stage
+    results (:func:`estimate_basis`): the views that carve, the support plane and the sorted
+    space. The experiments estimate five methods on one basis; volec estimate one."""
+
+    silhouettes: list[SilhouetteView] | None
+    """The views whose masks may carve (None: no carving)."""
+    left_out: tuple[SilhouetteView, ...]
+    """Views whose masks left out part of the food (:func:`volec.meshing.consistent_views`)."""
+    support: tuple[SupportPlane | None, str | None]
+    """The support plane, or None and why not (:func:`find_support`)."""
+    space: SpaceGrid
+    """The space around the food (:func:`stage_space`)."""
+    space_s: float
+    """Wall time of the space, seconds."""
+    settings: tuple[MeshingConfig, SupportConfig, SpaceConfig]
+    """The settings it was made with; an estimate with other ones is refused."""
+
+
+def estimate_basis(capture: Capture, stages: StageResults, cfg: EstimateConfig,
+                   silhouettes: list[SilhouetteView] | None = None) -> EstimateBasis:
+    """The :class:`EstimateBasis` of ``stages``: the ``silhouettes`` that may carve, the
+    support plane and the space around the food, by ``cfg``'s meshing, support and space
+    settings (the completion settings play no part)."""
+    left_out: list[SilhouetteView] = []
+    if silhouettes is not None:
+        silhouettes, left_out = consistent_views(silhouettes, stages.masked.cloud.xyz,
+                                                 cfg.meshing)
+    support = find_support(stages.masked.cloud, support_scene(stages, cfg.support),
+                           capture_up(capture), cfg.support)
+    start = time.perf_counter()
+    space = stage_space(stages, silhouettes, support[0], cfg.space)
+    return EstimateBasis(silhouettes, tuple(left_out), support, space,
+                         time.perf_counter() - start, (cfg.meshing, cfg.support, cfg.space))
+
+
 def estimate_from_stages(capture: Capture, stages: StageResults, model: SymmCompletion | None,
                          cfg: EstimateConfig, silhouettes: list[SilhouetteView] | None = None,
                          scale: ScaleCheck | None = None) -> Estimate:
     """The volume estimate from finished stage results: support plane, completion (when
     ``model`` is given), a closed mesh carved by ``silhouettes``, its volume, and the reasons
     it is not to be trusted (:mod:`volec.trust`). The pure core of :func:`run_estimate` and of
-    the experiments."""
+    the experiments: :func:`estimate_basis`, then :func:`estimate_from_basis`."""
+    return estimate_from_basis(capture, stages, model, cfg,
+                               estimate_basis(capture, stages, cfg, silhouettes), scale)
+
+
+def estimate_from_basis(capture: Capture, stages: StageResults, model: SymmCompletion | None,
+                        cfg: EstimateConfig, basis: EstimateBasis,
+                        scale: ScaleCheck | None = None) -> Estimate:
+    """:func:`estimate_from_stages` on a ``basis`` already made from the same stage results
+    with the same meshing, support and space settings as ``cfg``'s (another is a
+    :class:`ConfigError`): completion, the mesh, its volume, bounds and trust."""
+    if basis.settings != (cfg.meshing, cfg.support, cfg.space):
+        raise ConfigError("the estimate's meshing, support or space settings differ from "
+                          "those its basis was made with")
     up = capture_up(capture)
-    left_out: list[SilhouetteView] = []
-    if silhouettes is not None:
-        silhouettes, left_out = consistent_views(silhouettes, stages.masked.cloud.xyz,
-                                                 cfg.meshing)
-    support = find_support(stages.masked.cloud, support_scene(stages, cfg.support), up,
-                           cfg.support)
-    start = time.perf_counter()
-    space = stage_space(stages, silhouettes, support[0], cfg.space)
-    space_s = time.perf_counter() - start
+    silhouettes, left_out, support, space = (basis.silhouettes, basis.left_out, basis.support,
+                                             basis.space)
     food = food_mesh(stages.masked.cloud, support, up, model, cfg, silhouettes, space)
     view_up = (np.asarray(food.support.normal) if food.support is not None
                else up if up is not None else np.array([0.0, 0.0, 1.0]))
@@ -447,7 +490,7 @@ def estimate_from_stages(capture: Capture, stages: StageResults, model: SymmComp
     coverage = azimuth_span_deg(centres, food.mesh.mesh.centroid, view_up)
     start = time.perf_counter()
     bounds = estimate_bounds(food, space)
-    bounds_s = round(space_s + time.perf_counter() - start, 2)
+    bounds_s = round(basis.space_s + time.perf_counter() - start, 2)
     report = food.mesh.report
     facts = TrustFacts(
         frames=len(capture), registered=int(sfm.registered.sum()),

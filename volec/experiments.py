@@ -562,11 +562,17 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
     (how many items ran at once, sharing the cores) is recorded with the times.
 
     The estimate is :func:`volec.estimate.estimate_from_stages`, exactly what ``volec estimate``
-    runs, once per method of :data:`METHODS` on the same stage results (no completion, mirror,
+    runs (its basis made once, the rest per method), once per method of :data:`METHODS` on the
+    same stage results (no completion, mirror,
     rotation and network completion, and ``cfg``'s own completion, the default; the visual
     hull from the AR poses beside them); the ground truth is read only to score it."""
 
-    from volec.estimate import estimate_from_stages, food_silhouettes, load_completion_model
+    from volec.estimate import (
+        estimate_basis,
+        estimate_from_basis,
+        food_silhouettes,
+        load_completion_model,
+    )
     from volec.meshing import with_normals
     from volec.pointcloud import write_ply
     from volec.scale import require_metric
@@ -612,12 +618,11 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
                     "network": (replace(cfg, use_completion=True, completion_method="network"),
                                 model),
                     "completion": (replace(cfg, use_completion=True), model)}  # the default
-        support = None  # the first variant's plane (all find the same one) cuts the hull
+        # the methods differ only in completion: one basis (carving views, plane, space)
+        basis = estimate_basis(capture, stages, cfg, silhouettes)
         for tag, (variant, net) in variants.items():
-            est = estimate_from_stages(capture, stages, net, variant, silhouettes, scale)
+            est = estimate_from_basis(capture, stages, net, variant, basis, scale)
             made = est.food
-            if support is None:
-                support = made.support
             write_bytes_atomic(work / f"mesh_{tag}.ply", made.mesh.mesh.export(file_type="ply"))
             if tag == DEFAULT_METHOD:  # the cloud the default meshed
                 write_ply(with_normals(made.cloud), work / "food_completed.ply")
@@ -635,7 +640,7 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
                     f"{tag}_unknown_share": est.bounds.unknown_share,
                     **mesh_offset_scores(made.mesh.mesh, truth_mesh, prefix=f"{tag}_mesh"),
                     **{f"{tag}_{k}": v for k, v in made.seconds.items()}}
-        row |= _ar_visual_hull_scores(capture, stages, cfg, support, truth_points)
+        row |= _ar_visual_hull_scores(capture, stages, cfg, basis.support[0], truth_points)
         return row
 
     return cached_row(work / VOLUME_CACHE, key, run)
@@ -937,7 +942,12 @@ def attribution_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConf
                     key: dict[str, Any]) -> dict[str, Any]:
     """One item of :func:`attribution_experiment`, computed and cached under ``key``."""
 
-    from volec.estimate import estimate_from_stages, food_silhouettes, load_completion_model
+    from volec.estimate import (
+        estimate_basis,
+        estimate_from_basis,
+        food_silhouettes,
+        load_completion_model,
+    )
 
     out = ensure_capture(root, item, scenario)
 
@@ -973,12 +983,12 @@ def attribution_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConf
                 masked = mask_cloud(dense.cloud, capture, masks, sfm.T_world_from_cam,
                                     sfm.registered, cfg.masking)
                 these = replace(exact_stages, dense=dense, masked=masked)
-            silhouettes = food_silhouettes(capture, these, cfg)
-            est = estimate_from_stages(capture, these, model, cfg, silhouettes)
+            basis = estimate_basis(capture, these, cfg, food_silhouettes(capture, these, cfg))
+            est = estimate_from_basis(capture, these, model, cfg, basis)
             # the same without completion: the network's points are not part of the surface
             # offset that stereo, fusion and meshing make, and can hide or add to it
-            bare = estimate_from_stages(capture, these, None,
-                                        replace(cfg, use_completion=False), silhouettes)
+            bare = estimate_from_basis(capture, these, None, replace(cfg, use_completion=False),
+                                       basis)
             signed = signed_distances_to_surface(these.masked.cloud.xyz, truth)
             row |= {f"{variant}_ml": est.food.volume_ml,
                     f"{variant}_error_pct": 100 * (est.food.volume_ml / row["gt_ml"] - 1),
