@@ -284,6 +284,13 @@ def test_views_together_give_what_views_one_by_one_give():
     assert 0.2 < seen.mean() < 0.95
     np.testing.assert_array_equal(np.isfinite(batched), seen)
     assert np.abs(batched[seen] - one_by_one[seen]).max() < 1e-7  # metres
+    # and the masks' contradiction of a cloud (nearest pixel): the same shares
+    from volec.meshing import mask_contradictions
+
+    cloud = centre + offset + 0.031 * d[:3000]  # just outside the sphere: some outside masks
+    shares = mask_contradictions(far_views, cloud, 0.5)
+    np.testing.assert_array_equal(shares, [mask_contradiction(v, cloud, 0.5) for v in far_views])
+    assert shares.max() > 0
     # views of other sizes go one by one, with the same answer
     small = silhouette_view(np.ones((10, 12), bool), views[0].intrinsics, np.eye(4))
     mixed = outside_distances(points[:50], [*far_views[:2], small], 0.5)

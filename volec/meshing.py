@@ -33,6 +33,7 @@ compiled code beyond open3d and scikit-image and give a closed surface by constr
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -255,43 +256,58 @@ def mask_contradiction(view: SilhouetteView, food_xyz: np.ndarray, margin_px: fl
     return float(np.mean(view.signed_distance_px[pix[:, 1], pix[:, 0]] > margin_px))
 
 
+def mask_contradictions(views: list[SilhouetteView], food_xyz: np.ndarray, margin_px: float
+                        ) -> np.ndarray:
+    """:func:`mask_contradiction` of each of ``views`` (V,), :func:`batched` views together."""
+    food_xyz = np.asarray(food_xyz, float)
+    if not views or not batched(views):
+        return np.array([mask_contradiction(v, food_xyz, margin_px) for v in views])
+    seen = np.zeros(len(views))
+    outside = np.zeros(len(views))
+    for _, px, _, ok in _view_samples(food_xyz, views, "nearest"):
+        seen += ok.sum(dim=1).numpy()
+        outside += ((px > margin_px) & ok).sum(dim=1).numpy()
+    return np.where(seen > 0, outside / np.maximum(seen, 1), 1.0)
+
+
 def consistent_views(views: list[SilhouetteView], food_xyz: np.ndarray, cfg: MeshingConfig
                      ) -> tuple[list[SilhouetteView], list[SilhouetteView]]:
     """``views`` split into those that may carve and those whose mask leaves out more than
     ``cfg.silhouette_max_contradiction`` of the food cloud ``food_xyz``
     (:func:`mask_contradiction`): a mask that missed part of the food would carve it away,
     however many views agree."""
-    share = [mask_contradiction(v, food_xyz, cfg.silhouette_contradiction_px) for v in views]
+    share = mask_contradictions(views, food_xyz, cfg.silhouette_contradiction_px)
     keep = [s <= cfg.silhouette_max_contradiction for s in share]
     return ([v for v, k in zip(views, keep, strict=True) if k],
             [v for v, k in zip(views, keep, strict=True) if not k])
 
 
-def outside_distances(points: np.ndarray, views: list[SilhouetteView], margin_px: float
-                      ) -> np.ndarray:
-    """(V, N) float32: how far (metres, at the point's depth) each point of ``points`` (N, 3)
-    lies outside each view's mask widened by ``margin_px``; -inf where it is not in the view's
-    image. Bilinear in the masks' signed distances. Views of one image size without lens
-    distortion go through torch together, in chunks of points (on the CPU's threads: 2.3
-    times faster than view by view in numpy on 2 cores, same values to float32's precision);
-    the others one by one (:func:`_outside_distances_numpy`)."""
-    sizes = {v.signed_distance_px.shape for v in views}
-    if len(sizes) != 1 or not all(v.intrinsics.is_undistorted for v in views):
-        return _outside_distances_numpy(points, views, margin_px)
+def batched(views: list[SilhouetteView]) -> bool:
+    """True when ``views`` can be sampled together (:func:`_view_samples`): one image size,
+    no lens distortion."""
+    return (len({v.signed_distance_px.shape for v in views}) == 1
+            and all(v.intrinsics.is_undistorted for v in views))
+
+
+def _view_samples(points: np.ndarray, views: list[SilhouetteView], mode: str
+                  ) -> Iterator[tuple[slice, Any, Any, Any]]:
+    """The masks' signed distances (pixels) at ``points`` (N, 3) in every view at once, in
+    chunks of points: per chunk its slice of the points and (V, n) torch tensors of the
+    sampled distance (``mode`` "bilinear" or "nearest"), the depth (metres) and whether the
+    point falls in the image. On the CPU's threads, float32 about the points' centre
+    (coordinates of centimetres: sub-micrometre rounding). For :func:`batched` views."""
     import torch
     import torch.nn.functional as F
 
-    h, w = sizes.pop()
+    h, w = views[0].signed_distance_px.shape
     images = torch.from_numpy(np.stack([v.signed_distance_px for v in views])[:, None])
-    # float32 about the points' centre (|x| of centimetres: sub-micrometre rounding)
     origin = points.mean(axis=0) if len(points) else np.zeros(3)
     T64 = np.stack([v.T_cam_from_world[:3] for v in views]).astype(float)
     T64[:, :, 3] += T64[:, :, :3] @ origin
     T = torch.from_numpy(T64.astype(np.float32))
     f_c = torch.tensor([[v.intrinsics.fx, v.intrinsics.fy, v.intrinsics.cx, v.intrinsics.cy]
                         for v in views], dtype=torch.float32)[:, None, :]
-    out = np.full((len(views), len(points)), -np.inf, np.float32)
-    chunk = max(1, 4_000_000 // max(len(views), 1))
+    chunk = max(1, 4_000_000 // len(views))
     with torch.no_grad():
         for start in range(0, len(points), chunk):
             xyz = torch.from_numpy((points[start:start + chunk] - origin).astype(np.float32))
@@ -302,11 +318,27 @@ def outside_distances(points: np.ndarray, views: list[SilhouetteView], margin_px
             ok = (z > 1e-9) & (u >= 0) & (u <= w - 1) & (v >= 0) & (v <= h - 1)
             grid = torch.stack([u / (w - 1) * 2 - 1, v / (h - 1) * 2 - 1], dim=-1)
             grid = torch.where(ok[..., None], grid, torch.zeros_like(grid))
-            outside_px = F.grid_sample(images, grid[:, None], mode="bilinear",
-                                       align_corners=True)[:, 0, 0]
-            metres = (outside_px - margin_px) * z / f_c[..., 0]
-            metres = torch.where(ok, metres, torch.full_like(metres, -np.inf))
-            out[:, start:start + chunk] = metres.numpy()
+            sampled = F.grid_sample(images, grid[:, None], mode=mode,
+                                    align_corners=True)[:, 0, 0]
+            yield slice(start, start + len(xyz)), sampled, z / f_c[..., 0], ok
+
+
+def outside_distances(points: np.ndarray, views: list[SilhouetteView], margin_px: float
+                      ) -> np.ndarray:
+    """(V, N) float32: how far (metres, at the point's depth) each point of ``points`` (N, 3)
+    lies outside each view's mask widened by ``margin_px``; -inf where it is not in the view's
+    image. Bilinear in the masks' signed distances. :func:`batched` views go through torch
+    together (:func:`_view_samples`: 1.8 times faster than view by view in numpy on 2 cores,
+    the same values within 1e-7 m), the others one by one (:func:`_outside_distances_numpy`).
+    """
+    if not batched(views):
+        return _outside_distances_numpy(points, views, margin_px)
+    import torch
+
+    out = np.empty((len(views), len(points)), np.float32)
+    for rows, outside_px, metres_per_px, ok in _view_samples(points, views, "bilinear"):
+        metres = (outside_px - margin_px) * metres_per_px
+        out[:, rows] = torch.where(ok, metres, torch.full_like(metres, -np.inf)).numpy()
     return out
 
 
