@@ -137,6 +137,16 @@ def test_methods_on_one_basis_give_what_each_estimate_alone_gives(small_capture,
         assert shared.food.volume_ml == alone.food.volume_ml > 0
         assert shared.bounds == alone.bounds
         assert shared.warnings == alone.warnings
+    # a cloud meshed once on the basis is not meshed again; another cloud is
+    bare = replace(cfg, use_completion=False)
+    first = estimate_from_basis(capture, stages, None, bare, basis)
+    again = estimate_from_basis(capture, stages, None, bare, basis)
+    assert again.food.mesh is first.food.mesh
+    mirrored = estimate_from_basis(capture, stages, None, replace(cfg, completion_method="mirror"),
+                                   basis)
+    assert len(mirrored.food.cloud) > len(first.food.cloud)
+    assert mirrored.food.mesh is not first.food.mesh
+    assert mirrored.food.volume_ml != first.food.volume_ml
     other = replace(cfg, meshing=replace(cfg.meshing, silhouette_margin_px=2.0))
     with pytest.raises(ConfigError, match="basis"):
         estimate_from_basis(capture, stages, None, other, basis)

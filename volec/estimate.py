@@ -345,10 +345,14 @@ def completion_method_used(completion: Completion, cfg: EstimateConfig) -> str:
 def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None],
               up: np.ndarray | None, model: SymmCompletion | None, cfg: EstimateConfig,
               silhouettes: list[SilhouetteView] | None = None,
-              space: SpaceGrid | None = None) -> FoodMesh:
+              space: SpaceGrid | None = None,
+              meshes: dict[str, MeshResult] | None = None) -> FoodMesh:
     """Completion (see :func:`completed_cloud`) and a closed mesh of the food on the
     ``support`` plane (:func:`find_support`), carved by ``silhouettes`` when given, with its
-    volume."""
+    volume. With ``meshes`` (those already made with the same masked cloud, plane,
+    silhouettes and meshing settings, by :func:`cloud_digest`), a cloud meshed before is not
+    meshed again: two completion methods often give the same cloud (the default is the
+    network alone where the half-turn does not apply, mirror or rotation may add nothing)."""
     start = time.perf_counter()
     plane, problem = support
     cloud, summary = masked, None
@@ -360,7 +364,13 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     if completion is not None:
         cloud = completion.cloud
         summary = {"method": completion_method_used(completion, cfg), **completion.summary}
-    mesh = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked)
+    key = cloud_digest(cloud)
+    if meshes is not None and key in meshes:
+        mesh = meshes[key]
+    else:
+        mesh = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked)
+        if meshes is not None:
+            meshes[key] = mesh
     volume = volume_ml(mesh.mesh)
     share = None
     if completion is not None:
@@ -369,6 +379,16 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     return FoodMesh(cloud, mesh, volume, plane, problem, summary, share,
                     {"completion_s": round(completion_s, 2), "meshing_s": round(meshing_s, 2)},
                     skipped)
+
+
+def cloud_digest(cloud: PointCloud) -> str:
+    """A digest of what meshing reads of ``cloud``: its points and normals, bit for bit."""
+    import hashlib
+
+    digest = hashlib.sha256(np.ascontiguousarray(cloud.xyz, float).tobytes())
+    if cloud.normals is not None:
+        digest.update(np.ascontiguousarray(cloud.normals, float).tobytes())
+    return digest.hexdigest()
 
 
 def food_silhouettes(capture: Capture, stages: StageResults, cfg: EstimateConfig
@@ -440,6 +460,10 @@ class EstimateBasis:
     """Wall time of the space, seconds."""
     settings: tuple[MeshingConfig, SupportConfig, SpaceConfig]
     """The settings it was made with; an estimate with other ones is refused."""
+    meshes: dict[str, MeshResult] = field(default_factory=dict)
+    """The meshes made on it so far, by the digest of the cloud each was made from
+    (:func:`food_mesh`): a method whose completed cloud another method already meshed takes
+    that mesh."""
 
 
 def estimate_basis(capture: Capture, stages: StageResults, cfg: EstimateConfig,
@@ -482,7 +506,8 @@ def estimate_from_basis(capture: Capture, stages: StageResults, model: SymmCompl
     up = capture_up(capture)
     silhouettes, left_out, support, space = (basis.silhouettes, basis.left_out, basis.support,
                                              basis.space)
-    food = food_mesh(stages.masked.cloud, support, up, model, cfg, silhouettes, space)
+    food = food_mesh(stages.masked.cloud, support, up, model, cfg, silhouettes, space,
+                     basis.meshes)
     view_up = (np.asarray(food.support.normal) if food.support is not None
                else up if up is not None else np.array([0.0, 0.0, 1.0]))
     sfm = stages.sfm
