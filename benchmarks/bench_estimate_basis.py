@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import time
-from dataclasses import replace
 
 from volec.estimate import (
     EstimateConfig,
@@ -22,7 +21,13 @@ from volec.estimate import (
     food_silhouettes,
     load_completion_model,
 )
-from volec.experiments import ensure_capture, run_stages, scenario_capture, scenarios
+from volec.experiments import (
+    ensure_capture,
+    method_variants,
+    run_stages,
+    scenario_capture,
+    scenarios,
+)
 from volec.paths import experiment_dir
 
 
@@ -34,10 +39,7 @@ def main() -> None:
     scenario = scenarios(False)["full_orbit"]
     cfg = EstimateConfig()
     model = load_completion_model(cfg)
-    variants = [(replace(cfg, use_completion=False), None),
-                (replace(cfg, completion_method="mirror"), None),
-                (replace(cfg, completion_method="rotation"), None),
-                (replace(cfg, completion_method="network"), model), (cfg, model)]
+    variants = list(method_variants(cfg, model).values())
     for item in args.items:
         out = ensure_capture(experiment_dir(False), item, scenario)
         capture = scenario_capture(out, scenario)

@@ -364,13 +364,13 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     if completion is not None:
         cloud = completion.cloud
         summary = {"method": completion_method_used(completion, cfg), **completion.summary}
-    key = cloud_digest(cloud)
-    if meshes is not None and key in meshes:
-        mesh = meshes[key]
-    else:
+    if meshes is None:
         mesh = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked)
-        if meshes is not None:
-            meshes[key] = mesh
+    else:
+        key = cloud_digest(cloud)
+        if key not in meshes:
+            meshes[key] = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked)
+        mesh = meshes[key]
     volume = volume_ml(mesh.mesh)
     share = None
     if completion is not None:

@@ -556,6 +556,17 @@ def map_items(function: Callable[..., dict[str, Any]], jobs: list[tuple], labels
 VOLUME_CACHE = "volume_eval.json"
 
 
+def method_variants(cfg: EstimateConfig, model: Any) -> dict[str, tuple[EstimateConfig, Any]]:
+    """Per method of :data:`METHODS`, its config (``cfg`` with that completion) and the network
+    it needs (``model``, or None): no completion, mirror, rotation, network, and ``cfg``'s own
+    completion, the default."""
+    return {"no_completion": (replace(cfg, use_completion=False), None),
+            "mirror": (replace(cfg, use_completion=True, completion_method="mirror"), None),
+            "rotation": (replace(cfg, use_completion=True, completion_method="rotation"), None),
+            "network": (replace(cfg, use_completion=True, completion_method="network"), model),
+            "completion": (replace(cfg, use_completion=True), model)}
+
+
 def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
                key: dict[str, Any], workers: int = 1) -> dict[str, Any]:
     """One item of :func:`volume_experiment`, computed and cached under ``key``; ``workers``
@@ -610,14 +621,7 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
             "silhouettes_s": silhouettes_s,
             **signed_summary(masked_signed, "masked"),
         }
-        variants = {"no_completion": (replace(cfg, use_completion=False), None),
-                    "mirror": (replace(cfg, use_completion=True, completion_method="mirror"),
-                               None),
-                    "rotation": (replace(cfg, use_completion=True,
-                                         completion_method="rotation"), None),
-                    "network": (replace(cfg, use_completion=True, completion_method="network"),
-                                model),
-                    "completion": (replace(cfg, use_completion=True), model)}  # the default
+        variants = method_variants(cfg, model)
         # the methods differ only in completion: one basis (carving views, plane, space)
         basis = estimate_basis(capture, stages, cfg, silhouettes)
         for tag, (variant, net) in variants.items():

@@ -91,7 +91,7 @@ class SfmConfig:
     falls back to incremental mapping; ``summary.json`` records which one ran."""
     known_pose_rounds: int = 1
     """``known_poses``: re-triangulation and bundle adjustment rounds after the first one.
-    None would take the mapping from 11.0 to 6.0 s on three 100-frame orbits (apple, banana,
+    Zero would take the mapping from 11.0 to 6.0 s on three 100-frame orbits (apple, banana,
     pear) for the same pose accuracy (camera centres 0.90 mm both, rotations 0.112 against
     0.108 degrees: ``benchmarks/bench_sfm_mapping.py --variants known_poses rounds_0``), and
     moved the 21 full orbits' default MAPE from 1.73 to 1.76 % (p = 0.76), but the half
