@@ -57,6 +57,11 @@ def test_source_digest_covers_what_a_module_imports_and_nothing_else(fake_packag
     # prose is not code: a docstring or a comment changes nothing
     prose = '"""Constants."""\n\nK = 1  # the constant\n'
     assert _digest_after(fake_package, "sub/c.py", prose, "volec.a") == before
+    # a field's docstring (under it, as in the configs) is prose too; an f-string is not
+    field = '"""Constants."""\n\nK = 1  # the constant\n"""What K is."""\nif K:\n    """x"""\n'
+    with_if = _digest_after(fake_package, "sub/c.py", "K = 1\nif K:\n    pass\n", "volec.a")
+    assert _digest_after(fake_package, "sub/c.py", field, "volec.a") == with_if != before
+    assert _digest_after(fake_package, "sub/c.py", 'K = 1\nf"{K}"\n', "volec.a") != before
 
 
 def test_the_real_stages_depend_on_their_own_modules():

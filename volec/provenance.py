@@ -154,17 +154,25 @@ def source_digest(*modules: str) -> str:
 
 
 def _code_of(path: Path) -> bytes:
-    """What in a source file can change results: its syntax tree without docstrings (comments
-    are not in it), so editing prose does not invalidate cached results."""
+    """What in a source file can change results: its syntax tree without prose (comments are
+    not in it; every statement that is only a string is dropped: docstrings of modules,
+    classes and functions, and those under a dataclass's fields), so editing prose does not
+    invalidate cached results."""
     tree = ast.parse(path.read_text())
     for node in ast.walk(tree):
-        body = getattr(node, "body", None)
-        if (isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef)
-                and body and isinstance(body[0], ast.Expr)
-                and isinstance(body[0].value, ast.Constant)
-                and isinstance(body[0].value.value, str)):
-            node.body = body[1:] or [ast.Pass()]
+        for field in ("body", "orelse", "finalbody"):
+            body = getattr(node, field, None)
+            if not isinstance(body, list) or not body or not isinstance(body[0], ast.stmt):
+                continue
+            kept = [s for s in body if not _is_prose(s)]
+            setattr(node, field, kept or [ast.Pass()])
     return ast.dump(tree).encode()
+
+
+def _is_prose(statement: ast.stmt) -> bool:
+    """True for a statement that is only a string literal (it does nothing)."""
+    return (isinstance(statement, ast.Expr) and isinstance(statement.value, ast.Constant)
+            and isinstance(statement.value.value, str))
 
 
 def module_digest(name: str) -> str:
