@@ -2,7 +2,7 @@
 lies, as notebooks 04-05 write them for the full orbit.
 
 Usage: .venv/bin/python benchmarks/bench_volume.py [--scenario full_orbit_sharp]
-       [--items apple banana ...] [--workers 2]
+       [--items apple banana ...] [--workers 2] [--set dense.ncc_window_px=9 ...]
 
 The captures and stage results live under data/bench-sfm (shared with the notebooks; keyed on
 the config and the code, so nothing stale is reused). Writes
@@ -10,13 +10,16 @@ figures/table1_volume_SCENARIO.{csv,md}, figures/surface_offset_SCENARIO.{csv,md
 figures/table2_SCENARIO.{csv,md} (the methods side by side, as notebook 07), and prints
 them. ``full_orbit_sharp`` is the full orbit rendered with the first benchmark's look
 (one ray per pixel, a point light, no blur), for comparison with the phone look of
-``full_orbit``.
+``full_orbit``. ``--set SECTION.FIELD=VALUE`` (repeatable) runs a changed default config
+(:func:`volec.estimate.with_setting`); its stages and rows replace the default's in the work
+folders, so compare in a copy of data/ (``VOLEC_DATA_DIR``) to keep both.
 """
 
 from __future__ import annotations
 
 import argparse
 
+from volec.estimate import EstimateConfig, with_setting
 from volec.experiments import (
     method_table,
     scenarios,
@@ -34,9 +37,14 @@ def main() -> None:
     parser.add_argument("--scenario", default="full_orbit_sharp")
     parser.add_argument("--items", nargs="+", default=item_names())
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
+                        help="change one setting of the default config (repeatable)")
     args = parser.parse_args()
+    cfg = EstimateConfig()
+    for setting in args.set:
+        cfg = with_setting(cfg, setting)
     raw = volume_experiment(experiment_dir(False), args.items, scenarios(False)[args.scenario],
-                            workers=args.workers)
+                            cfg, workers=args.workers)
     for name, table in (("table1_volume", volume_table(raw)),
                         ("surface_offset", surface_offset_table(raw)),
                         ("table2", method_table(raw))):

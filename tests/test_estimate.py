@@ -248,3 +248,18 @@ def test_an_upright_network_without_plane_or_up_skips_completion_and_says_why():
     notes = _notes(None, stages, food, None, True)
     assert any(n.startswith("completion was skipped") and "upright" in n for n in notes)
     assert not any("skipped" in n for n in _notes(None, stages, with_pca, None, True))
+
+
+def test_with_setting_changes_one_field_typed_and_names_what_is_wrong():
+    from volec.errors import ConfigError
+    from volec.estimate import EstimateConfig, with_setting
+
+    cfg = with_setting(EstimateConfig(), "dense.ncc_window_px=9")
+    assert cfg.dense.ncc_window_px == 9 and cfg.dense.min_ncc == EstimateConfig().dense.min_ncc
+    assert with_setting(cfg, "use_completion=false").use_completion is False
+    assert with_setting(cfg, "dense.min_ncc=0.4").dense.min_ncc == 0.4
+    for bad, says in (("dense.window=9", "no field 'window'"), ("dense=3", "cannot be set"),
+                      ("dense.ncc_window_px=nine", "not a int"), ("use_completion=1", "true"),
+                      ("dense.ncc_window_px", "SECTION.FIELD=VALUE")):
+        with pytest.raises(ConfigError, match=says):
+            with_setting(EstimateConfig(), bad)

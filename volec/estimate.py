@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -215,6 +215,47 @@ class Estimate:
     def trusted(self) -> bool:
         """True when there is no reason to distrust the volume."""
         return not self.reasons
+
+
+def with_setting(cfg: EstimateConfig, setting: str) -> EstimateConfig:
+    """``cfg`` with one field changed by ``setting``, ``SECTION.FIELD=VALUE`` (e.g.
+    ``dense.ncc_window_px=9``) or ``FIELD=VALUE`` for a top-level one; the value is read as the
+    type the field holds now (int, float, bool, str). For benchmarks that compare a setting."""
+    path, sep, text = setting.partition("=")
+    names = path.strip().split(".")
+    if not sep or not all(names):
+        raise ConfigError(f"setting {setting!r}: use SECTION.FIELD=VALUE")
+    return _with_field(cfg, names, text.strip(), setting)
+
+
+def _with_field(obj: Any, names: list[str], text: str, setting: str) -> Any:
+    """``obj`` (a frozen dataclass) with the field at ``names`` set to ``text``, typed."""
+    names_here = {f.name for f in fields(obj)}
+    if names[0] not in names_here:
+        raise ConfigError(f"setting {setting!r}: {type(obj).__name__} has no field "
+                          f"{names[0]!r} (fields: {', '.join(sorted(names_here))})")
+    current = getattr(obj, names[0])
+    if len(names) > 1:
+        if not is_dataclass(current):
+            raise ConfigError(f"setting {setting!r}: {names[0]!r} is not a section")
+        value = _with_field(current, names[1:], text, setting)
+    else:
+        value = _typed(current, text, setting)
+    return replace(obj, **{names[0]: value})
+
+
+def _typed(current: Any, text: str, setting: str) -> Any:
+    """``text`` as the type of ``current`` (bool from true/false)."""
+    if isinstance(current, bool):
+        if text.lower() not in ("true", "false"):
+            raise ConfigError(f"setting {setting!r}: true or false")
+        return text.lower() == "true"
+    if isinstance(current, int | float | str):
+        try:
+            return type(current)(text)
+        except ValueError as e:
+            raise ConfigError(f"setting {setting!r}: not a {type(current).__name__}") from e
+    raise ConfigError(f"setting {setting!r}: a {type(current).__name__} field cannot be set")
 
 
 def checkpoint_path(cfg: EstimateConfig) -> Path:
