@@ -259,7 +259,7 @@ def test_with_setting_changes_one_field_typed_and_names_what_is_wrong():
     assert with_setting(cfg, "use_completion=false").use_completion is False
     assert with_setting(cfg, "dense.min_ncc=0.4").dense.min_ncc == 0.4
     for bad, says in (("dense.window=9", "no field 'window'"), ("dense=3", "cannot be set"),
-                      ("dense.ncc_window_px=nine", "not a int"), ("use_completion=1", "true"),
+                      ("dense.ncc_window_px=nine", "not a valid int"), ("use_completion=1", "true"),
                       ("dense.ncc_window_px", "SECTION.FIELD=VALUE")):
         with pytest.raises(ConfigError, match=says):
             with_setting(EstimateConfig(), bad)

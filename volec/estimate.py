@@ -254,7 +254,8 @@ def _typed(current: Any, text: str, setting: str) -> Any:
         try:
             return type(current)(text)
         except ValueError as e:
-            raise ConfigError(f"setting {setting!r}: not a {type(current).__name__}") from e
+            raise ConfigError(f"setting {setting!r}: {text!r} is not a valid "
+                              f"{type(current).__name__}") from e
     raise ConfigError(f"setting {setting!r}: a {type(current).__name__} field cannot be set")
 
 
