@@ -249,3 +249,52 @@ def test_oblique_points_are_kept_only_where_no_frontal_point_covers_the_surface(
     assert keep[-5:].all()  # far from the wall: nothing covers it
     # without any frontal point every oblique one is kept
     assert frontal_or_filling(xyz[len(frontal_part):], cosine[len(frontal_part):], cfg).all()
+
+
+def _faint(views: list[View], contrast: float, noise: float) -> list[View]:
+    """The views with the texture's contrast scaled by ``contrast`` and sensor noise added."""
+    from dataclasses import replace
+
+    faint = []
+    for view in views:
+        rng = np.random.default_rng(view.index)
+        gray = 0.5 + contrast * (view.gray - 0.5) + rng.normal(scale=noise, size=view.gray.shape)
+        faint.append(replace(view, gray=gray.astype(np.float32)))
+    return faint
+
+
+def test_a_faint_texture_is_matched_over_the_larger_window(plane_scene):
+    views, depths = plane_scene
+    truth = depths[0]
+    near_far = (0.8 * truth.min(), 1.2 * truth.max())
+    inner = np.zeros_like(truth, bool)
+    inner[8:-8, 8:-8] = True
+
+    def sweep(scene: list[View], cfg: DenseConfig) -> tuple[float, float, np.ndarray]:
+        got = estimate_depth(scene, 0, [1, 2, 3, 4], near_far, cfg).depth_m
+        valid = got[inner] > 0
+        rel = np.abs(got[inner][valid] - truth[inner][valid]) / truth[inner][valid]
+        return valid.mean(), float(np.median(rel)), got
+
+    adaptive = DenseConfig(faint_window_px=11)
+    # A skin with 3 % of the texture's contrast: the 7x7 window finds about two thirds of the
+    # plane; where it is faint the 11x11 window finds more, and more accurately.
+    faint = _faint(views, 0.03, 0.003)
+    small_valid, small_error, _ = sweep(faint, DenseConfig())
+    large_valid, large_error, _ = sweep(faint, adaptive)
+    assert large_valid > small_valid + 0.1
+    assert large_error < small_error
+    # Where the texture is strong (every 7x7 window above faint_texture_std), nothing changes.
+    stds = np.stack([ndimage.uniform_filter(views[0].gray.astype(float) ** p, 7) for p in (1, 2)])
+    assert np.sqrt(stds[1] - stds[0] ** 2)[inner].min() > adaptive.faint_texture_std
+    np.testing.assert_array_equal(sweep(views, adaptive)[2], sweep(views, DenseConfig())[2])
+
+
+def test_the_faint_window_must_be_odd_and_larger():
+    from volec.dense import plan_dense
+    from volec.errors import ConfigError
+
+    for bad in (8, 7, 5):
+        with pytest.raises(ConfigError, match="faint_window_px"):
+            plan_dense(None, None, np.zeros((0, 4, 4)), np.zeros(0, bool), np.zeros((0, 3)),
+                       DenseConfig(faint_window_px=bad))

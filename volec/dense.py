@@ -92,6 +92,14 @@ class DenseConfig:
     """The cost of a depth is the mean NCC of the best this-many sources."""
     ncc_window_px: int = 7
     """Side of the square NCC window, pixels (odd)."""
+    faint_window_px: int = 0
+    """Side of a larger NCC window (odd) used instead where the reference image is faint: the
+    intensity standard deviation in its ``ncc_window_px`` window is below
+    ``faint_texture_std`` (a peach's or a plum's skin); 0: one window everywhere. The warped
+    source is shared, so it costs only the larger window's box filters."""
+    faint_texture_std: float = 0.02
+    """With ``faint_window_px``: a reference window with less intensity standard deviation
+    (0..1 scale) than this is faint and matched over the larger window."""
     n_depth_planes: int = 64
     """Fronto-parallel planes of the first sweep, uniform in inverse depth."""
     n_refine_hypotheses: int = 7
@@ -369,14 +377,35 @@ class _Reference:
         self.x0, self.x1 = int(xs.min()), int(xs.max()) + 1
         h, w = self.y1 - self.y0, self.x1 - self.x0
         self.shape = (h, w)
-        k = cfg.ncc_window_px
         ref = torch.from_numpy(view.gray[self.y0:self.y1, self.x0:self.x1].copy()).to(device)
         self.image = ref
-        self.mean = _box_mean(ref, k)
-        self.std = (_box_mean(ref * ref, k) - self.mean**2).clamp_min(0).sqrt()
+        self.mean, self.std = _window_stats(ref, cfg.ncc_window_px)
+        # Where the small window is faint, the larger one's statistics (and its NCC) are used.
+        self.faint = None
+        if cfg.faint_window_px:
+            faint = self.std < cfg.faint_texture_std
+            if bool(faint.any()):
+                self.faint = faint
+                self.faint_mean, self.faint_std = _window_stats(ref, cfg.faint_window_px)
         u, v = np.meshgrid(np.arange(self.x0, self.x1), np.arange(self.y0, self.y1))
         pix = np.stack([u.ravel(), v.ravel(), np.ones(u.size)])  # (3, P)
         self.rays = np.linalg.inv(view.K) @ pix  # camera-frame rays with z = 1
+
+
+def _window_stats(image, k: int):
+    """The mean and standard deviation (both (h, w)) of ``image`` over k x k windows."""
+    mean = _box_mean(image, k)
+    return mean, (_box_mean(image * image, k) - mean**2).clamp_min(0).sqrt()
+
+
+def texture_std(ref: _Reference):
+    """(h, w) intensity standard deviation of each pixel's matching window (the larger one
+    where the reference is faint)."""
+    import torch
+
+    if ref.faint is None:
+        return ref.std
+    return torch.where(ref.faint, ref.faint_std, ref.std)
 
 
 def _source_terms(ref_view: View, ref: _Reference, src: View, device):
@@ -409,12 +438,22 @@ def _ncc(ref: _Reference, term, inv_depth, cfg: DenseConfig):
     valid = (z[..., 0] > 1e-9) & inside[..., 0] & inside[..., 1]
     warped = F.grid_sample(image, grid[None], mode="bilinear", padding_mode="border",
                            align_corners=True)[0, 0].reshape(-1, h, w)
-    k = cfg.ncc_window_px
-    mean_s = _box_mean(warped, k)
-    var_s = (_box_mean(warped * warped, k) - mean_s * mean_s).clamp_min_(0)
-    cov = _box_mean(warped * ref.image, k) - mean_s * ref.mean
-    ncc = cov / (ref.std * var_s.sqrt_() + 1e-6)
+    squared, product = warped * warped, warped * ref.image
+    ncc = _window_ncc(warped, squared, product, ref.mean, ref.std, cfg.ncc_window_px)
+    if ref.faint is not None:
+        faint = _window_ncc(warped, squared, product, ref.faint_mean, ref.faint_std,
+                            cfg.faint_window_px)
+        ncc = torch.where(ref.faint, faint, ncc)
     return ncc.masked_fill_(~valid.reshape(-1, h, w), -1.0)
+
+
+def _window_ncc(warped, squared, product, ref_mean, ref_std, k: int):
+    """NCC (D, h, w) over k x k windows from the warped source, its square, its product with
+    the reference, and the reference's window mean and standard deviation."""
+    mean_s = _box_mean(warped, k)
+    var_s = (_box_mean(squared, k) - mean_s * mean_s).clamp_min_(0)
+    cov = _box_mean(product, k) - mean_s * ref_mean
+    return cov / (ref_std * var_s.sqrt_() + 1e-6)
 
 
 def _aggregate(ref: _Reference, terms, inv_depth, cfg: DenseConfig):
@@ -503,7 +542,7 @@ def estimate_depth(views: list[View], ref_pos: int, sources: list[int],
             inv = _parabola_peak(cost, j, hyp.gather(0, j[None])[0], spacing)
             span = spacing
         keep = ((best_cost.reshape(-1) >= cfg.min_ncc) & ~at_end.reshape(-1)
-                & (ref.std.reshape(-1) >= cfg.min_texture_std) & (inv > 0))
+                & (texture_std(ref).reshape(-1) >= cfg.min_texture_std) & (inv > 0))
         d = torch.where(keep, 1.0 / inv.clamp_min(1e-9), torch.zeros_like(inv))
         crop_depth = d.reshape(h, w).cpu().numpy()
         crop_score = torch.where(keep, best_cost.reshape(-1), torch.full_like(inv, -1.0))
@@ -684,6 +723,9 @@ def plan_dense(capture: Capture, masks: MaskSet | None, T_world_from_cam: np.nda
     the work (``roi="mask"``)."""
     if cfg.ncc_window_px % 2 == 0 or cfg.ncc_window_px < 3:
         raise ConfigError("ncc_window_px must be odd and at least 3")
+    if cfg.faint_window_px and (cfg.faint_window_px % 2 == 0
+                                or cfg.faint_window_px <= cfg.ncc_window_px):
+        raise ConfigError("faint_window_px must be 0, or odd and larger than ncc_window_px")
     if len(T_world_from_cam) != len(capture) or len(registered) != len(capture):
         raise ValueError("one pose and one registered flag per capture frame are needed")
     use_mask = cfg.roi == "mask" and masks is not None
