@@ -96,10 +96,11 @@ class DenseConfig:
     """Side of a larger NCC window (odd) used instead where the reference image is faint: the
     intensity standard deviation in its ``ncc_window_px`` window is below
     ``faint_texture_std`` (a peach's or a plum's skin); 0: one window everywhere. The warped
-    source is shared, so it costs only the larger window's box filters (15-20 % of the dense
-    time). Off by default: 11 raised the faint-skin coverage (exact poses: banana 77 -> 84 %,
-    pear 66 -> 76 %) but moved the ``smooth`` scenario's volume MAPE from 2.02 to 2.39 %
-    (README, Completion): the fronto-parallel window is biased on curved faint skin."""
+    source is shared, so it costs only the larger window's box filters (1.11-1.22 times the
+    dense time, measured on two items). Off by default: 11 raised the faint-skin coverage
+    (exact poses: banana 77 -> 84 %, pear 66 -> 76 %) but moved the ``smooth`` scenario's
+    volume MAPE from 2.02 to 2.39 % (README, Completion): the fronto-parallel window is
+    biased on curved faint skin."""
     faint_texture_std: float = 0.02
     """With ``faint_window_px``: a reference window with less intensity standard deviation
     (0..1 scale) than this is faint and matched over the larger window."""
