@@ -402,7 +402,7 @@ def _window_stats(image, k: int):
     return mean, (_box_mean(image * image, k) - mean**2).clamp_min(0).sqrt()
 
 
-def texture_std(ref: _Reference):
+def _texture_std(ref: _Reference):
     """(h, w) intensity standard deviation of each pixel's matching window (the larger one
     where the reference is faint)."""
     import torch
@@ -546,7 +546,7 @@ def estimate_depth(views: list[View], ref_pos: int, sources: list[int],
             inv = _parabola_peak(cost, j, hyp.gather(0, j[None])[0], spacing)
             span = spacing
         keep = ((best_cost.reshape(-1) >= cfg.min_ncc) & ~at_end.reshape(-1)
-                & (texture_std(ref).reshape(-1) >= cfg.min_texture_std) & (inv > 0))
+                & (_texture_std(ref).reshape(-1) >= cfg.min_texture_std) & (inv > 0))
         d = torch.where(keep, 1.0 / inv.clamp_min(1e-9), torch.zeros_like(inv))
         crop_depth = d.reshape(h, w).cpu().numpy()
         crop_score = torch.where(keep, best_cost.reshape(-1), torch.full_like(inv, -1.0))
