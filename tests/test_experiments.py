@@ -222,3 +222,24 @@ def test_scenarios_that_share_a_rendering_render_it_once_before_they_run(monkeyp
     experiments.render_captures(tmp_path, runs)
     assert sorted(p.name for p in made) == ["apple-drift_1cm", "apple-full_orbit",
                                             "pear-drift_1cm", "pear-full_orbit"]
+
+
+@pytest.mark.parametrize(("limit", "expected"), [(1, 1), (None, 2)])
+def test_a_capture_renders_with_no_more_processes_than_its_worker_may_use_threads(
+        monkeypatch, tmp_path, limit, expected):
+    """In a parallel item (one thread each) the renderer's own pool would oversubscribe the
+    cores; alone, the scenario's process count stands."""
+    import os
+
+    import volec.batch as batch
+    import volec.experiments as experiments
+
+    used = []
+    monkeypatch.setattr(batch, "_THREAD_LIMIT", limit)
+    monkeypatch.setattr(os, "cpu_count", lambda: 4)
+    monkeypatch.setattr(experiments, "write_synthetic_capture",
+                        lambda item, out, cfg, **kw: used.append(cfg.workers))
+    scenario = scenarios(False)["full_orbit"]
+    assert scenario.synth.workers == 2
+    experiments.ensure_capture(tmp_path, "apple", scenario)
+    assert used == [expected]

@@ -74,7 +74,7 @@ def test_volec_dense_end_to_end(small_capture, small_result, tmp_path, capsys):
     stages = snapshot(work)
     assert main(["dense", str(capture), "--out", str(work), "--quiet"]) == 0
     assert snapshot(work) == stages
-    assert main(["dense", str(capture), "--out", str(work), "--preset", "fast", "--quiet"]) == 2
+    assert main(["dense", str(capture), "--out", str(work), "--preset", "thorough", "--quiet"]) == 2
     assert "other settings" in capsys.readouterr().err
     assert snapshot(work) == stages
 

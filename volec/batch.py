@@ -75,9 +75,21 @@ def _capture_root(path: Path) -> Path:
     return path / "capture" if (path / "capture" / "transforms.json").exists() else path
 
 
+#: The limit :func:`limit_threads` set in this process (None: no limit set).
+_THREAD_LIMIT: int | None = None
+
+
+def thread_limit() -> int:
+    """How many threads this process may use: what :func:`limit_threads` set in it, else the
+    machine's cores."""
+    return _THREAD_LIMIT or os.cpu_count() or 1
+
+
 def limit_threads(threads: int) -> None:
     """In a worker: let the numerical libraries (BLAS, torch, OpenCV) use at most ``threads``
-    threads."""
+    threads (and volec's own process pools, :func:`thread_limit`)."""
+    global _THREAD_LIMIT
+    _THREAD_LIMIT = threads
     for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ[name] = str(threads)
     import cv2

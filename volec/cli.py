@@ -344,8 +344,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     dense.add_argument("capture", help="capture folder (transforms.json, masks optional)")
     dense.add_argument("--out", required=True, type=Path, help="work folder")
-    dense.add_argument("--preset", default="default", choices=["default", "fast", "full_image"],
-                       help="dense stereo preset")
+    dense.add_argument("--preset", default="default",
+                       choices=["default", "thorough", "fast", "full_image"],
+                       help="dense stereo preset (thorough: 64 planes and 4 sources, the "
+                       "default before 2026-12-05, 1.45 times the time)")
     dense.add_argument("--mask-preset", default="default", choices=["default", "tolerant"],
                        help="masking preset (tolerant: 90%% of views, masks grown 3 px)")
     _add_masks_option(dense)
