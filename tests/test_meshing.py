@@ -446,3 +446,58 @@ def test_poisson_gives_the_same_surface_on_every_run():
     runs = [np.asarray(_poisson(noisy, cloud.normals, MeshingConfig())[0].vertices)
             for _ in range(3)]
     assert all(np.array_equal(runs[0], run) for run in runs[1:])
+
+
+def _ellipsoid_silhouette(intr: Intrinsics, T_world_from_cam: np.ndarray, centre: np.ndarray,
+                          axes: np.ndarray) -> np.ndarray:
+    """The exact mask of an axis-aligned ellipsoid: pixels whose ray meets it."""
+    v, u = np.mgrid[0:intr.height, 0:intr.width]
+    rays = np.stack([(u - intr.cx) / intr.fx, (v - intr.cy) / intr.fy, np.ones(u.shape)], -1)
+    rays = (rays @ T_world_from_cam[:3, :3].T) / axes  # in the frame where it is a unit ball
+    origin = (T_world_from_cam[:3, 3] - centre) / axes
+    a = np.einsum("...i,...i", rays, rays)
+    b = rays @ origin
+    return b * b - a * (origin @ origin - 1.0) >= 0
+
+
+def test_views_mirrored_in_the_food_s_plane_bound_the_side_a_half_orbit_never_saw():
+    # An egg-shaped ellipsoid lying on a table, filmed from one side only (azimuths 0-180
+    # degrees, 20-50 degrees up): its visual hull is far too large on the other side. It is
+    # symmetric about the vertical plane y = 0 (which a half orbit from the +y side cannot
+    # check); the views reflected in that plane see the far side as the filmed side, and their
+    # hull is what the full orbit's views give (still above the truth: no view sees under it).
+    from volec.completion.mirror import reflection_matrix
+    from volec.meshing import mirrored_views
+    from volec.space import SpaceConfig, visual_hull_mesh
+
+    axes = np.array([0.035, 0.02, 0.018])
+    centre = np.array([0.0, 0.0, axes[2]])
+    intr = Intrinsics(width=320, height=240, fx=300.0, fy=300.0, cx=160.0, cy=120.0)
+    orbit = []
+    for k in range(30):  # 0, 12, ..., 348 degrees
+        azimuth, elevation = 2 * np.pi * k / 30, np.radians(20.0 + 30.0 * (k % 2))
+        eye = centre + 0.3 * np.array([np.cos(elevation) * np.cos(azimuth),
+                                       np.cos(elevation) * np.sin(azimuth), np.sin(elevation)])
+        T = look_at_opencv(eye, centre, np.array([0.0, 0.0, 1.0]))
+        orbit.append(silhouette_view(_ellipsoid_silhouette(intr, T, centre, axes), intr, T))
+    views = orbit[:16]  # 0-180 degrees
+    d = np.random.default_rng(4).normal(size=(20000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    extent = PointCloud(centre + 1.3 * axes * d)  # only the grid's extent
+    table = SupportPlane((0.0, 0.0, 1.0), 0.0, 1000, 0.0)
+    space = SpaceConfig(pitch_m=0.001)
+    truth = 4 / 3 * np.pi * axes.prod() * 1e6  # 52.8 mL
+    one_side = volume_ml(visual_hull_mesh(extent, views, table, space))
+    plane_y0 = reflection_matrix(np.array([0.0, 1.0, 0.0]), 0.0)
+    mirrored = mirrored_views(views, plane_y0, 0.0, centre)
+    # a mirrored view of a point samples the real view at the point's mirror image
+    far = centre + np.array([0.01, -0.012, 0.0])  # on the far side, inside the egg
+    assert silhouette_field(far[None], mirrored[:1], 0.0, 1)[0] == pytest.approx(
+        silhouette_field((far * [1, -1, 1])[None], views[:1], 0.0, 1)[0], abs=1e-9)
+    both = volume_ml(visual_hull_mesh(extent, [*views, *mirrored], table, space))
+    full = volume_ml(visual_hull_mesh(extent, orbit, table, space))
+    assert one_side > 1.12 * truth and one_side > full + 0.05 * truth
+    assert abs(both - full) < 0.1 * (one_side - full)
+    # a margin keeps the reflected silhouettes from carving within it: between the two
+    wide = mirrored_views(views, plane_y0, 0.004, centre)
+    assert both < volume_ml(visual_hull_mesh(extent, [*views, *wide], table, space)) < one_side

@@ -47,6 +47,12 @@ from volec.completion.complete import (
     mirror_completion,
     rotation_completion,
 )
+from volec.completion.mirror import (
+    MirrorViewsConfig,
+    VerticalMirrorFit,
+    fit_vertical_mirror,
+    reflection_matrix,
+)
 from volec.completion.model import SymmCompletion
 from volec.completion.preprocess import frame_needs_up
 from volec.dense import PRESETS as DENSE_PRESETS
@@ -67,6 +73,7 @@ from volec.meshing import (
     consistent_views,
     fit_support_plane,
     mesh_cloud,
+    mirrored_views,
     silhouette_views,
     with_normals,
 )
@@ -138,6 +145,9 @@ class EstimateConfig:
     meshing: MeshingConfig = field(default_factory=MeshingConfig)
     carve_silhouettes: bool = True
     """Intersect the mesh with the visual hull of the food masks (see :mod:`volec.meshing`)."""
+    mirror_views: MirrorViewsConfig = field(default_factory=MirrorViewsConfig)
+    """Where the food is symmetric about a vertical plane, carve also with the views reflected
+    in it (completion methods ``auto`` and ``mirror``; :mod:`volec.completion.mirror`)."""
     trust: TrustConfig = field(default_factory=TrustConfig)
     """When the estimate is flagged ``trusted: false`` (see :mod:`volec.trust`)."""
     scale: ScaleConfig = field(default_factory=ScaleConfig)
@@ -210,6 +220,9 @@ class Estimate:
     silhouettes_left_out: tuple[str, ...] = ()
     """Frames whose masks left out part of the food cloud, so that they did not carve
     (:func:`volec.meshing.consistent_views`)."""
+    mirror_views: dict[str, Any] | None = None
+    """The mirror plane the carving's reflected views came from and how many carved (None:
+    no reflected views were asked for)."""
 
     @property
     def trusted(self) -> bool:
@@ -408,8 +421,8 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
         summary = {"method": completion_method_used(completion, cfg), **completion.summary}
     if meshes is None:
         mesh = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked)
-    else:
-        key = cloud_digest(cloud)
+    else:  # the same cloud carved by the same views
+        key = cloud_digest(cloud) + views_digest(silhouettes)
         if key not in meshes:
             meshes[key] = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked)
         mesh = meshes[key]
@@ -421,6 +434,13 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     return FoodMesh(cloud, mesh, volume, plane, problem, summary, share,
                     {"completion_s": round(completion_s, 2), "meshing_s": round(meshing_s, 2)},
                     skipped)
+
+
+def views_digest(views: list[SilhouetteView] | None) -> str:
+    """A digest of which views carve (by name: reflected views are named apart)."""
+    import hashlib
+
+    return hashlib.sha256("\0".join(v.name for v in views or []).encode()).hexdigest()[:16]
 
 
 def cloud_digest(cloud: PointCloud) -> str:
@@ -500,8 +520,13 @@ class EstimateBasis:
     """The space around the food (:func:`stage_space`)."""
     space_s: float
     """Wall time of the space, seconds."""
-    settings: tuple[MeshingConfig, SupportConfig, SpaceConfig]
+    settings: tuple[MeshingConfig, SupportConfig, SpaceConfig, MirrorViewsConfig]
     """The settings it was made with; an estimate with other ones is refused."""
+    mirrored: tuple[SilhouetteView, ...] = ()
+    """The views reflected in the food's vertical mirror plane that may carve
+    (:func:`mirror_carving_views`; none when the food is not symmetric or they are off)."""
+    mirror_fit: VerticalMirrorFit | None = None
+    """That plane's fit (None when reflected views are off or there is no up direction)."""
     meshes: dict[str, MeshResult] = field(default_factory=dict)
     """The meshes made on it so far, by the digest of the cloud each was made from
     (:func:`food_mesh`): a method whose completed cloud another method already meshed takes
@@ -521,8 +546,36 @@ def estimate_basis(capture: Capture, stages: StageResults, cfg: EstimateConfig,
                            capture_up(capture), cfg.support)
     start = time.perf_counter()
     space = stage_space(stages, silhouettes, support[0], cfg.space)
-    return EstimateBasis(silhouettes, tuple(left_out), support, space,
-                         time.perf_counter() - start, (cfg.meshing, cfg.support, cfg.space))
+    space_s = time.perf_counter() - start
+    up = support[0].normal if support[0] is not None else capture_up(capture)
+    mirrored, fit = mirror_carving_views(stages.masked.cloud, silhouettes, up, space, cfg)
+    return EstimateBasis(silhouettes, tuple(left_out), support, space, space_s,
+                         (cfg.meshing, cfg.support, cfg.space, cfg.mirror_views),
+                         mirrored=tuple(mirrored), mirror_fit=fit)
+
+
+def mirror_carving_views(masked: PointCloud, silhouettes: list[SilhouetteView] | None,
+                         up: np.ndarray | None, space: SpaceGrid, cfg: EstimateConfig
+                         ) -> tuple[list[SilhouetteView], VerticalMirrorFit | None]:
+    """(the ``silhouettes`` reflected in the masked cloud's vertical mirror plane that agree
+    with the cloud, its fit): none when ``cfg.mirror_views`` is off, there are no silhouettes
+    or no ``up``, or the cloud is not symmetric about the plane. A reflected view whose
+    silhouette leaves out part of the cloud (:func:`volec.meshing.consistent_views`) says the
+    food is not symmetric as seen from there, and does not carve."""
+    if not cfg.mirror_views.enabled or not silhouettes or up is None:
+        return [], None
+    fit = fit_vertical_mirror(masked.xyz, np.asarray(up, float), space, cfg.mirror_views)
+    if not fit.symmetric:
+        return [], fit
+    reflected = mirrored_views(silhouettes, reflection_matrix(fit.normal, fit.offset_m),
+                               cfg.mirror_views.margin_m, masked.xyz.mean(axis=0))
+    return consistent_views(reflected, masked.xyz, cfg.meshing)[0], fit
+
+
+def uses_mirror_views(cfg: EstimateConfig) -> bool:
+    """True when ``cfg``'s estimate carves with the reflected views too."""
+    return (cfg.use_completion and cfg.mirror_views.enabled
+            and cfg.completion_method in ("auto", "mirror"))
 
 
 def estimate_from_stages(capture: Capture, stages: StageResults, model: SymmCompletion | None,
@@ -542,12 +595,17 @@ def estimate_from_basis(capture: Capture, stages: StageResults, model: SymmCompl
     """:func:`estimate_from_stages` on a ``basis`` already made from the same stage results
     with the same meshing, support and space settings as ``cfg``'s (another is a
     :class:`ConfigError`): completion, the mesh, its volume, bounds and trust."""
-    if basis.settings != (cfg.meshing, cfg.support, cfg.space):
+    if basis.settings != (cfg.meshing, cfg.support, cfg.space, cfg.mirror_views):
         raise ConfigError("the estimate's meshing, support or space settings differ from "
                           "those its basis was made with")
     up = capture_up(capture)
     silhouettes, left_out, support, space = (basis.silhouettes, basis.left_out, basis.support,
                                              basis.space)
+    mirror_record = None
+    if uses_mirror_views(cfg) and silhouettes:
+        mirror_record = {"fit": None if basis.mirror_fit is None else basis.mirror_fit.record(),
+                         "views_carving": len(basis.mirrored)}
+        silhouettes = [*silhouettes, *basis.mirrored]
     food = food_mesh(stages.masked.cloud, support, up, model, cfg, silhouettes, space,
                      basis.meshes)
     view_up = (np.asarray(food.support.normal) if food.support is not None
@@ -578,7 +636,7 @@ def estimate_from_basis(capture: Capture, stages: StageResults, model: SymmCompl
         warnings.append(f"{len(left_out)} masks left out part of the food and did not carve "
                         f"the mesh: {', '.join(v.name for v in left_out)}")
     return Estimate(food, reasons, warnings, coverage, view_up, bounds, bounds_s,
-                    tuple(v.name for v in left_out))
+                    tuple(v.name for v in left_out), mirror_record)
 
 
 def report_pictures(result: FoodMesh, up: np.ndarray, folder: Path, masked: PointCloud
@@ -692,6 +750,7 @@ def estimate_record(capture: Capture, stages: StageResults, est: Estimate, cfg: 
             "far_points_dropped")},
         "completion": food.completion_summary,
         "completion_share": food.completion_share,
+        "mirror_views": est.mirror_views,
         "capture": str(capture.root),
         "checkpoint": (str(checkpoint_path(cfg)) if food.completion_summary is not None
                        and "network" in food.completion_summary["method"] else None),

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -268,6 +268,23 @@ def mask_contradictions(views: list[SilhouetteView], food_xyz: np.ndarray, margi
         seen += ok.sum(dim=1).numpy()
         outside += ((px > margin_px) & ok).sum(dim=1).numpy()
     return np.where(seen > 0, outside / np.maximum(seen, 1), 1.0)
+
+
+def mirrored_views(views: list[SilhouetteView], reflection: np.ndarray, margin_m: float,
+                   centre: np.ndarray) -> list[SilhouetteView]:
+    """``views`` composed with ``reflection`` (4, 4), a mirror plane of the food: a point lies
+    inside a mirrored view's silhouette when its mirror image lies inside the view's. Each
+    silhouette is shrunk by ``margin_m`` (in pixels at the depth of ``centre``, the food's), so
+    that it carves only what lies that far outside."""
+    out = []
+    for view in views:
+        T = view.T_cam_from_world @ reflection
+        depth = float((T[:3, :3] @ np.asarray(centre, float) + T[:3, 3])[2])
+        margin_px = margin_m * view.intrinsics.fx / max(depth, 1e-6)
+        out.append(replace(view, T_cam_from_world=T, name=f"{view.name} (mirrored)",
+                           signed_distance_px=(view.signed_distance_px
+                                               - np.float32(margin_px)).astype(np.float32)))
+    return out
 
 
 def consistent_views(views: list[SilhouetteView], food_xyz: np.ndarray, cfg: MeshingConfig

@@ -56,3 +56,35 @@ def test_the_pipeline_mirror_completion_adds_only_what_was_missing():
     assert np.median(cKDTree(full).query(added)[0]) < 1e-3
     assert cKDTree(partial).query(added)[0].min() > 0.004
     assert done.cloud.rgb is None or (done.cloud.rgb[len(partial):] == PREDICTED_RGB).all()
+
+
+def _egg_lying(n: int = 20000, seed: int = 0) -> np.ndarray:
+    """Points on an egg lying along x (wider at +x), centred at (0.02, 0.03, 0.025): mirror
+    symmetric about the vertical plane y = 0.03 only."""
+    d = np.random.default_rng(seed).normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    radius = 0.025 * (1.0 + 0.25 * d[:, 0])
+    return np.array([0.02, 0.03, 0.025]) + d * radius[:, None] * np.array([1.6, 1.0, 1.0])
+
+
+def test_a_vertical_mirror_plane_is_found_and_an_asymmetric_cloud_is_told_apart():
+    from volec.completion.mirror import MirrorViewsConfig, fit_vertical_mirror, reflection_matrix
+
+    up = np.array([0.0, 0.0, 1.0])
+    egg = _egg_lying()
+    fit = fit_vertical_mirror(egg, up)
+    assert fit.symmetric and fit.median_distance_m < 0.001
+    assert abs(fit.normal @ [0.0, 1.0, 0.0]) > np.cos(np.radians(2.0))  # the plane y = 0.03
+    assert abs(fit.offset_m / (fit.normal @ [0.0, 1.0, 0.0]) - 0.03) < 0.0005
+    # the homogeneous reflection maps the egg onto itself
+    S = reflection_matrix(fit.normal, fit.offset_m)
+    moved = egg @ S[:3, :3].T + S[:3, 3]
+    np.testing.assert_allclose(moved @ S[:3, :3].T + S[:3, 3], egg, atol=1e-12)
+    # a twisted blob (its two lobes turn with height, like a screw): chiral, so no plane at all
+    # maps it onto itself
+    d = np.random.default_rng(1).normal(size=(20000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    phi, polar = np.arctan2(d[:, 1], d[:, 0]), np.arccos(d[:, 2])
+    twisted = d * 0.03 * (1.0 + 0.35 * np.sin(2 * phi + 3 * np.cos(polar)))[:, None]
+    fit = fit_vertical_mirror(twisted, up, cfg=MirrorViewsConfig())
+    assert not fit.symmetric and fit.median_distance_m > 0.003
