@@ -41,8 +41,12 @@ def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys
         result["stage_seconds"])
     assert result["frames"] == {"total": 16, "registered": 16}
     assert result["keyframes"]["frames_in"] == 16 == result["keyframes"]["frames_kept"]
-    # every registered view's silhouette carved the mesh, and carved only a small part of it
-    assert result["mesh"]["silhouette_views"] == 16
+    # every registered view's silhouette carved the mesh (and those reflected in the cake's
+    # mirror plane that agree with its cloud), and carved only a small part of it
+    mirror = result["mirror_views"]
+    assert mirror["fit"] is not None and 0 <= mirror["views_carving"] <= 16
+    assert mirror["views_carving"] == 0 or mirror["fit"]["symmetric"]
+    assert result["mesh"]["silhouette_views"] == 16 + mirror["views_carving"]
     assert 0.0 <= result["mesh"]["carved_fraction"] < 0.25
     for name in ("scene.ply", "food_masked.ply", "food_completed.ply", "report.md",
                  "report/stages_above.png", "report/masks.png"):
