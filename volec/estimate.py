@@ -560,8 +560,9 @@ def mirror_carving_views(masked: PointCloud, silhouettes: list[SilhouetteView] |
     """(the ``silhouettes`` reflected in the masked cloud's vertical mirror plane that agree
     with the cloud, its fit): none when ``cfg.mirror_views`` is off, there are no silhouettes
     or no ``up``, or the cloud is not symmetric about the plane. A reflected view whose
-    silhouette leaves out part of the cloud (:func:`volec.meshing.consistent_views`) says the
-    food is not symmetric as seen from there, and does not carve."""
+    silhouette leaves out more than ``cfg.mirror_views.max_contradiction`` of the cloud
+    (:func:`volec.meshing.consistent_views`) says the food is not symmetric as seen from
+    there, and does not carve."""
     if not cfg.mirror_views.enabled or not silhouettes or up is None:
         return [], None
     fit = fit_vertical_mirror(masked.xyz, np.asarray(up, float), space, cfg.mirror_views)
@@ -569,7 +570,9 @@ def mirror_carving_views(masked: PointCloud, silhouettes: list[SilhouetteView] |
         return [], fit
     reflected = mirrored_views(silhouettes, reflection_matrix(fit.normal, fit.offset_m),
                                cfg.mirror_views.margin_m, masked.xyz.mean(axis=0))
-    return consistent_views(reflected, masked.xyz, cfg.meshing)[0], fit
+    strict = replace(cfg.meshing, silhouette_max_contradiction=min(
+        cfg.meshing.silhouette_max_contradiction, cfg.mirror_views.max_contradiction))
+    return consistent_views(reflected, masked.xyz, strict)[0], fit
 
 
 def uses_mirror_views(cfg: EstimateConfig) -> bool:
