@@ -558,12 +558,13 @@ def mirror_carving_views(masked: PointCloud, silhouettes: list[SilhouetteView] |
                          up: np.ndarray | None, space: SpaceGrid, cfg: EstimateConfig
                          ) -> tuple[list[SilhouetteView], VerticalMirrorFit | None]:
     """(the ``silhouettes`` reflected in the masked cloud's vertical mirror plane that agree
-    with the cloud, its fit): none when ``cfg.mirror_views`` is off, there are no silhouettes
-    or no ``up``, or the cloud is not symmetric about the plane. A reflected view whose
+    with the cloud, its fit): none when ``cfg.mirror_views`` is off, ``cfg`` completes nothing
+    (the plane's search is then skipped), there are no silhouettes or no ``up``, or the cloud
+    is not symmetric about the plane. A reflected view whose
     silhouette leaves out more than ``cfg.mirror_views.max_contradiction`` of the cloud
     (:func:`volec.meshing.consistent_views`) says the food is not symmetric as seen from
     there, and does not carve."""
-    if not cfg.mirror_views.enabled or not silhouettes or up is None:
+    if not (cfg.mirror_views.enabled and cfg.use_completion) or not silhouettes or up is None:
         return [], None
     fit = fit_vertical_mirror(masked.xyz, np.asarray(up, float), space, cfg.mirror_views)
     if not fit.symmetric:

@@ -23,6 +23,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from volec.completion.preprocess import fit_normalization
+from volec.completion.rotation import seen_costs
 from volec.space import UNKNOWN, SpaceGrid
 
 
@@ -209,19 +210,6 @@ class VerticalMirrorFit:
                 "checked_share": round(self.checked_share, 3), "symmetric": self.symmetric}
 
 
-def _seen_reflection_costs(tree: cKDTree, sample: np.ndarray, normal: np.ndarray, offset: float,
-                           space: SpaceGrid | None, radius_m: float, min_checked: float
-                           ) -> float:
-    """Mean truncated distance of the reflected ``sample`` that lands in seen space; inf when
-    less than ``min_checked`` of it does."""
-    moved = reflect(sample, normal, offset)
-    checked = np.ones(len(moved), bool) if space is None else space.states_at(moved) != UNKNOWN
-    if checked.mean() < min_checked:
-        return float("inf")
-    distance = tree.query(moved[checked], distance_upper_bound=radius_m)[0]
-    return float(np.minimum(distance, radius_m).mean())
-
-
 def fit_vertical_mirror(xyz: np.ndarray, up: np.ndarray, space: SpaceGrid | None = None,
                         cfg: MirrorViewsConfig | None = None) -> VerticalMirrorFit:
     """The vertical plane (its normal horizontal about the unit ``up``) that best maps the seen
@@ -243,8 +231,9 @@ def fit_vertical_mirror(xyz: np.ndarray, up: np.ndarray, space: SpaceGrid | None
 
     def cost(angle: float, offset: float) -> float:
         normal = np.cos(angle) * e1 + np.sin(angle) * e2
-        return _seen_reflection_costs(tree, sample, normal, centre @ normal + offset, space,
-                                      radius, cfg.min_checked_share)
+        seen = seen_costs(tree, reflect(sample, normal, centre @ normal + offset), space,
+                          radius, cfg.min_checked_share)
+        return float("inf") if seen is None else float(seen.mean())
 
     step = np.radians(cfg.azimuth_step_deg)
     grid = [(cost(a, o), a, o) for a in np.arange(0.0, np.pi, step)

@@ -84,19 +84,31 @@ def turned(xyz: np.ndarray, centre: np.ndarray, up: np.ndarray, angle_rad: float
             + np.outer(s * a + c * b, e2))
 
 
+def seen_costs(tree: cKDTree, moved: np.ndarray, space: SpaceGrid | None, radius_m: float,
+               min_checked_share: float) -> np.ndarray | None:
+    """The distances (metres, truncated at ``radius_m``) to the cloud in ``tree`` of the
+    ``moved`` points (a symmetry's images of the cloud's) that land in seen space (all without
+    ``space``): only there can a symmetry be checked. None when less than
+    ``min_checked_share`` of them do. Shared by this baseline's axis and the mirror plane of
+    :func:`volec.completion.mirror.fit_vertical_mirror`."""
+    checked = np.ones(len(moved), bool) if space is None else space.states_at(moved) != UNKNOWN
+    if checked.mean() < min_checked_share:
+        return None
+    distance = tree.query(moved[checked], distance_upper_bound=radius_m)[0]
+    return np.minimum(distance, radius_m)
+
+
 def axis_score(tree: cKDTree, sample: np.ndarray, centre: np.ndarray, up: np.ndarray,
                space: SpaceGrid | None, cfg: RotationConfig, radius_m: float) -> float:
     """Mean truncated distance (metres) from the turned ``sample`` to the cloud, over the
     turned points that land in seen space; inf when too few do."""
     costs = []
     for angle in np.radians(cfg.angles_deg):
-        moved = turned(sample, centre, up, angle)
-        checked = (np.ones(len(moved), bool) if space is None
-                   else space.states_at(moved) != UNKNOWN)
-        if checked.mean() < cfg.min_checked_share:
+        seen = seen_costs(tree, turned(sample, centre, up, angle), space, radius_m,
+                          cfg.min_checked_share)
+        if seen is None:
             return float("inf")
-        distance = tree.query(moved[checked], distance_upper_bound=radius_m)[0]
-        costs.append(np.minimum(distance, radius_m))
+        costs.append(seen)
     return float(np.mean(np.concatenate(costs)))
 
 
