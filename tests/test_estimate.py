@@ -46,7 +46,9 @@ def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys
     mirror = result["mirror_views"]
     assert mirror["fit"] is not None and 0 <= mirror["views_carving"] <= 16
     assert mirror["views_carving"] == 0 or mirror["fit"]["symmetric"]
-    assert result["mesh"]["silhouette_views"] == 16 + mirror["views_carving"]
+    assert result["mesh"]["silhouette_views"] == 16
+    assert (result["mesh"]["prior_views"] or 0) == mirror["views_carving"]
+    assert mirror["spare_seen_food"] is True
     assert 0.0 <= result["mesh"]["carved_fraction"] < 0.25
     for name in ("scene.ply", "food_masked.ply", "food_completed.ply", "report.md",
                  "report/stages_above.png", "report/masks.png"):

@@ -501,3 +501,33 @@ def test_views_mirrored_in_the_food_s_plane_bound_the_side_a_half_orbit_never_sa
     # a margin keeps the reflected silhouettes from carving within it: between the two
     wide = mirrored_views(views, plane_y0, 0.004, centre)
     assert both < volume_ml(visual_hull_mesh(extent, [*views, *wide], table, space)) < one_side
+
+
+def test_prior_views_carve_only_where_they_may():
+    # A sphere on a table, its whole surface observed, carved by its exact silhouettes; prior
+    # views (as a shape prior makes them) show a concentric sphere of 0.8 the radius. Allowed
+    # everywhere they carve the sphere down to about the small one's hull; allowed nowhere
+    # they change nothing (the same field); allowed on the y < 0 half only, they carve that
+    # half alone: by the views' symmetry about y = 0, half way between the two.
+    from volec.meshing import PriorViews
+
+    r, small_r = 0.03, 0.024
+    centre, d, table, views = _sphere_on_table(r)
+    small = [silhouette_view(_sphere_silhouette(v.intrinsics, np.linalg.inv(v.T_cam_from_world),
+                                                centre, small_r),
+                             v.intrinsics, np.linalg.inv(v.T_cam_from_world), f"{v.name} prior")
+             for v in views]
+    cloud = PointCloud(centre + r * d, None, d)
+
+    def volume(may_carve) -> float:
+        prior = PriorViews(tuple(small), may_carve)
+        return volume_ml(mesh_cloud(cloud, table, FAST, views, None, prior).mesh)
+
+    plain = volume_ml(mesh_cloud(cloud, table, FAST, views).mesh)
+    nowhere = volume(lambda p: np.zeros(len(p), bool))
+    everywhere = volume(lambda p: np.ones(len(p), bool))
+    half = volume(lambda p: p[:, 1] < 0)
+    assert nowhere == plain
+    small_truth = 4 / 3 * np.pi * small_r**3 * 1e6  # 57.9 mL against 113.1
+    assert small_truth < everywhere < 0.75 * plain
+    assert half == pytest.approx((plain + everywhere) / 2, rel=0.03)

@@ -67,6 +67,7 @@ from volec.meshing import (
     MeshingConfig,
     MeshingError,
     MeshResult,
+    PriorViews,
     SilhouetteView,
     SupportConfig,
     SupportPlane,
@@ -94,7 +95,14 @@ from volec.report import ReportScene, bounds_sentence, write_report_html
 from volec.scale import ScaleCheck, ScaleConfig, require_metric
 from volec.segment import MaskSet, SegmentConfig, given_masks
 from volec.sfm import SfmConfig
-from volec.space import SpaceConfig, SpaceGrid, VolumeBounds, observed_space, volume_bounds
+from volec.space import (
+    FOOD,
+    SpaceConfig,
+    SpaceGrid,
+    VolumeBounds,
+    observed_space,
+    volume_bounds,
+)
 from volec.trust import Reason, TrustConfig, TrustFacts, assess
 from volec.volume import volume_ml
 
@@ -401,13 +409,15 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
               up: np.ndarray | None, model: SymmCompletion | None, cfg: EstimateConfig,
               silhouettes: list[SilhouetteView] | None = None,
               space: SpaceGrid | None = None,
-              meshes: dict[str, MeshResult] | None = None) -> FoodMesh:
+              meshes: dict[str, MeshResult] | None = None,
+              prior: PriorViews | None = None) -> FoodMesh:
     """Completion (see :func:`completed_cloud`) and a closed mesh of the food on the
     ``support`` plane (:func:`find_support`), carved by ``silhouettes`` when given, with its
     volume. With ``meshes`` (those already made with the same masked cloud, plane,
     silhouettes and meshing settings, by :func:`cloud_digest`), a cloud meshed before is not
     meshed again: two completion methods often give the same cloud (the default is the
-    network alone where the half-turn does not apply, mirror or rotation may add nothing)."""
+    network alone where the half-turn does not apply, mirror or rotation may add nothing).
+    ``prior`` views (:func:`mirror_prior`) carve too, where they may."""
     start = time.perf_counter()
     plane, problem = support
     cloud, summary = masked, None
@@ -420,11 +430,12 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
         cloud = completion.cloud
         summary = {"method": completion_method_used(completion, cfg), **completion.summary}
     if meshes is None:
-        mesh = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked)
+        mesh = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked, prior)
     else:  # the same cloud carved by the same views
-        key = cloud_digest(cloud) + views_digest(silhouettes)
+        key = cloud_digest(cloud) + views_digest([*(silhouettes or []),
+                                                  *(prior.views if prior else ())])
         if key not in meshes:
-            meshes[key] = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked)
+            meshes[key] = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked, prior)
         mesh = meshes[key]
     volume = volume_ml(mesh.mesh)
     share = None
@@ -576,6 +587,22 @@ def mirror_carving_views(masked: PointCloud, silhouettes: list[SilhouetteView] |
     return consistent_views(reflected, masked.xyz, strict)[0], fit
 
 
+def mirror_prior(basis: EstimateBasis, cfg: EstimateConfig) -> PriorViews | None:
+    """The basis's reflected views as carving views of their own (None when there are none):
+    with ``cfg.mirror_views.spare_seen_food``, they do not carve where the basis's space is
+    food (what the cameras showed)."""
+    if not basis.mirrored:
+        return None
+    space = basis.space
+
+    def may_carve(points: np.ndarray) -> np.ndarray:
+        if not cfg.mirror_views.spare_seen_food:
+            return np.ones(len(points), bool)
+        return space.states_at(points) != FOOD
+
+    return PriorViews(basis.mirrored, may_carve)
+
+
 def uses_mirror_views(cfg: EstimateConfig) -> bool:
     """True when ``cfg``'s estimate carves with the reflected views too."""
     return (cfg.use_completion and cfg.mirror_views.enabled
@@ -608,10 +635,11 @@ def estimate_from_basis(capture: Capture, stages: StageResults, model: SymmCompl
     mirror_record = None
     if uses_mirror_views(cfg) and silhouettes:
         mirror_record = {"fit": None if basis.mirror_fit is None else basis.mirror_fit.record(),
-                         "views_carving": len(basis.mirrored)}
-        silhouettes = [*silhouettes, *basis.mirrored]
+                         "views_carving": len(basis.mirrored),
+                         "spare_seen_food": cfg.mirror_views.spare_seen_food}
+    prior = mirror_prior(basis, cfg) if mirror_record is not None else None
     food = food_mesh(stages.masked.cloud, support, up, model, cfg, silhouettes, space,
-                     basis.meshes)
+                     basis.meshes, prior)
     view_up = (np.asarray(food.support.normal) if food.support is not None
                else up if up is not None else np.array([0.0, 0.0, 1.0]))
     sfm = stages.sfm
@@ -750,8 +778,8 @@ def estimate_record(capture: Capture, stages: StageResults, est: Estimate, cfg: 
         "support_plane": None if food.support is None else food.support.record(),
         "mesh": {k: food.mesh.report.get(k) for k in (
             "faces", "vertices", "watertight", "grid_voxel_m", "cut_at_support",
-            "silhouette_views", "carved_fraction", "pieces_dropped", "dropped_volume_ml",
-            "far_points_dropped")},
+            "silhouette_views", "prior_views", "carved_fraction", "pieces_dropped",
+            "dropped_volume_ml", "far_points_dropped")},
         "completion": food.completion_summary,
         "completion_share": food.completion_share,
         "mirror_views": est.mirror_views,

@@ -33,7 +33,7 @@ compiled code beyond open3d and scikit-image and give a closed surface by constr
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -204,6 +204,18 @@ class SilhouetteView:
     negative inside."""
     name: str = ""
     """The frame's name in its capture."""
+
+
+@dataclass(frozen=True)
+class PriorViews:
+    """Silhouettes a shape prior made (the real views reflected in the food's mirror plane,
+    :func:`mirrored_views`) and where they may carve: they carve with their own visual hull
+    (``MeshingConfig.silhouette_min_views`` of them agreeing), only at the points where
+    ``may_carve`` (points (N, 3) -> (N,) bool) is True, e.g. not where the cameras showed
+    food (:mod:`volec.space`)."""
+
+    views: tuple[SilhouetteView, ...]
+    may_carve: Callable[[np.ndarray], np.ndarray]
 
 
 def silhouette_view(mask: np.ndarray, intrinsics: Intrinsics, T_world_from_cam: np.ndarray,
@@ -597,10 +609,11 @@ def behind_observed(points: np.ndarray, observed: PointCloud, reach_m: float,
 
 def _carve(field_m: np.ndarray, lower: np.ndarray, shape: tuple[int, int, int],
            views: list[SilhouetteView], cfg: MeshingConfig, report: dict[str, Any],
-           observed: PointCloud | None = None) -> np.ndarray:
-    """``field_m`` intersected with the visual hull of ``views``, only evaluated near or
-    inside the solid (elsewhere the result is outside anyway), except just behind the
-    ``observed`` surface (:attr:`MeshingConfig.spare_observed_m`)."""
+           observed: PointCloud | None = None, prior: PriorViews | None = None) -> np.ndarray:
+    """``field_m`` intersected with the visual hull of ``views`` (and, where they may carve,
+    of the ``prior`` views), only evaluated near or inside the solid (elsewhere the result is
+    outside anyway), except just behind the ``observed`` surface
+    (:attr:`MeshingConfig.spare_observed_m`)."""
     flat = field_m.reshape(-1).copy()
     near = np.flatnonzero(flat < 2 * cfg.grid_voxel_m)
     axes = _grid_axes(lower, shape, cfg.grid_voxel_m)
@@ -608,6 +621,9 @@ def _carve(field_m: np.ndarray, lower: np.ndarray, shape: tuple[int, int, int],
     points = np.stack([axes[i][index[i]] for i in range(3)], axis=1)
     hull = silhouette_field(points, views, cfg.silhouette_margin_px, cfg.silhouette_min_views,
                             cfg.silhouette_min_share)
+    if prior is not None and prior.views:
+        hull = np.maximum(hull, prior_field(points, prior, cfg))
+        report["prior_views"] = len(prior.views)
     if observed is not None and cfg.spare_observed_m > 0:
         hull = np.minimum(hull, behind_observed(points, observed, cfg.spare_observed_m))
     inside_before = int((flat < 0).sum())
@@ -617,6 +633,15 @@ def _carve(field_m: np.ndarray, lower: np.ndarray, shape: tuple[int, int, int],
                    "silhouette_margin_px": cfg.silhouette_margin_px,
                    "spare_observed_m": cfg.spare_observed_m if observed is not None else 0.0})
     return flat.reshape(shape)
+
+
+def prior_field(points: np.ndarray, prior: PriorViews, cfg: MeshingConfig) -> np.ndarray:
+    """(N,) metres outside the ``prior`` views' hull (:func:`silhouette_field`), -inf where
+    they may not carve."""
+    out = silhouette_field(points, list(prior.views), cfg.silhouette_margin_px,
+                           cfg.silhouette_min_views, cfg.silhouette_min_share)
+    out[~np.asarray(prior.may_carve(points), bool)] = -np.inf
+    return out
 
 
 def within_reach(xyz: np.ndarray, factor: float) -> np.ndarray:
@@ -631,11 +656,13 @@ def within_reach(xyz: np.ndarray, factor: float) -> np.ndarray:
 def mesh_cloud(cloud: PointCloud, support: SupportPlane | None = None,
                cfg: MeshingConfig | None = None,
                silhouettes: list[SilhouetteView] | None = None,
-               observed: PointCloud | None = None) -> MeshResult:
+               observed: PointCloud | None = None, prior: PriorViews | None = None
+               ) -> MeshResult:
     """A closed mesh of the food cloud (see the module docstring). With ``support``, the
     surface is cut flat at that plane and points below it are dropped first; with
-    ``silhouettes``, it is intersected with their visual hull, except just behind the
-    ``observed`` cloud (the part of ``cloud`` the cameras measured, with normals)."""
+    ``silhouettes``, it is intersected with their visual hull (and the ``prior`` views' where
+    those may carve), except just behind the ``observed`` cloud (the part of ``cloud`` the
+    cameras measured, with normals)."""
     cfg = cfg or MeshingConfig()
     start = time.perf_counter()
     if len(cloud) < cfg.min_points:
@@ -684,7 +711,7 @@ def mesh_cloud(cloud: PointCloud, support: SupportPlane | None = None,
                   + axes[2][None, None, :] * n[2] + support.offset_m)
         field_m = np.maximum(field_m, -height)
     if silhouettes:
-        field_m = _carve(field_m, lower, shape, silhouettes, cfg, report, observed)
+        field_m = _carve(field_m, lower, shape, silhouettes, cfg, report, observed, prior)
     mesh = closed_surface(field_m, lower, cfg.grid_voxel_m)
     pieces = mesh.split(only_watertight=False)
     if pieces and not max(pieces, key=lambda m: len(m.faces)).is_watertight:

@@ -181,6 +181,10 @@ class MirrorViewsConfig:
     """Step of the candidate normals' directions in the horizontal plane."""
     offset_steps: int = 21
     """Candidate offsets per normal, across half the cloud's width about its centre."""
+    spare_seen_food: bool = True
+    """The reflected views carve only space the cameras did not show to be food
+    (:mod:`volec.space`: not just behind the observed surface, nor enclosed by it): what was
+    seen stands, and the reflection decides only what nobody saw."""
     seed: int = 0
     """Seeds the scoring subsample."""
 
