@@ -40,13 +40,16 @@
 #   the support plane; no SfM, no depth;
 # - **VolE-style**: the masked dense cloud closed by Poisson, the support plane and the masks'
 #   hull, no completion;
-# - **mirror completion**: the masked cloud plus its reflection in its best mirror plane;
+# - **mirror completion**: the masked cloud plus its reflection in its best mirror plane, and
+#   the views reflected in its best vertical mirror plane carving where no camera showed food;
 # - **rotation completion**: the masked cloud plus its half-turn about its best vertical axis,
 #   kept only where no camera constrained the space (the far side of a half orbit);
 # - **network completion**: the masked cloud plus the SymmCompletion network's points where
 #   nothing was observed;
 # - **volec's default**: the half-turn where the masked cloud is symmetric under it, then the
-#   network for what is still missing (the network alone where it is not).
+#   network for what is still missing (the network alone where it is not); where the cloud is
+#   symmetric about a vertical plane, the views reflected in it carve the space no camera
+#   showed to be food.
 #
 # Volumes are scored against the true volume (APE: absolute percentage error) and each mesh by
 # its Chamfer-L1 distance to the true surface. The ground truth is read only to score.
@@ -104,7 +107,7 @@ pd.concat({name: table.tail(2).set_index("item") for name, table in tables.items
 # %% [markdown]
 # ## Table III: does the default beat each other method?
 #
-# Paired t-tests over the items of each scenario, the default (network completion) against
+# Paired t-tests over the items of each scenario, the default (`auto` completion) against
 # each other method, on the volume's APE and on the Chamfer distance. `mean_without` is the
 # other method's mean, `mean_with` the default's; a positive `mean_difference` favours the
 # default.

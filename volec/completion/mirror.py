@@ -184,7 +184,12 @@ class MirrorViewsConfig:
     spare_seen_food: bool = True
     """The reflected views carve only space the cameras did not show to be food
     (:mod:`volec.space`: not just behind the observed surface, nor enclosed by it): what was
-    seen stands, and the reflection decides only what nobody saw."""
+    seen stands, and the reflection decides only what nobody saw. Carving wherever their hull
+    allowed (a89e84b), the reflected views of items that are only nearly symmetric cut real
+    food: on the 60-frame captures from 10-25 degrees the banana went -3.1 -> -7.0 % and the
+    croissant +0.0 -> -4.5 % (their kept reflected views put 8.5 % of the masked cloud more
+    than 1 mm outside their hull); sparing seen food, -3.7 and -0.8 %, while the half orbit's
+    yellow cane stays cut from +13.9 to -1.1 % (-2.4 carving everywhere)."""
     seed: int = 0
     """Seeds the scoring subsample."""
 
