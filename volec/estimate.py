@@ -593,14 +593,10 @@ def mirror_prior(basis: EstimateBasis, cfg: EstimateConfig) -> PriorViews | None
     food (what the cameras showed)."""
     if not basis.mirrored:
         return None
+    if not cfg.mirror_views.spare_seen_food:
+        return PriorViews(basis.mirrored, lambda points: np.ones(len(points), bool))
     space = basis.space
-
-    def may_carve(points: np.ndarray) -> np.ndarray:
-        if not cfg.mirror_views.spare_seen_food:
-            return np.ones(len(points), bool)
-        return space.states_at(points) != FOOD
-
-    return PriorViews(basis.mirrored, may_carve)
+    return PriorViews(basis.mirrored, lambda points: space.states_at(points) != FOOD)
 
 
 def uses_mirror_views(cfg: EstimateConfig) -> bool:
