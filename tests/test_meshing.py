@@ -13,6 +13,7 @@ from volec.meshing import (
     MeshingConfig,
     MeshingError,
     SilhouetteView,
+    SupportConfig,
     SupportPlane,
     behind_observed,
     closed_surface,
@@ -119,6 +120,27 @@ def test_fit_support_plane_finds_the_table_under_a_sphere():
         fit_support_plane(scene, food, up=np.array([1.0, 0.0, 0.0]))
     with pytest.raises(MeshingError, match="not food"):
         fit_support_plane(food, food)
+
+
+def test_the_support_search_widens_until_it_holds_enough_table():
+    # the table is seen only in a ring 2.3-2.8 food radii from the food's centre (what SIFT
+    # leaves beside a sparse capture): the plane is found there, at its true height
+    rng = np.random.default_rng(2)
+    r = 0.03
+    food = _sphere_cloud(r, 5000, centre=np.array([0.0, 0.0, r]))
+    radius_99 = float(np.percentile(np.linalg.norm(food.xyz - food.xyz.mean(axis=0), axis=1),
+                                    99))
+    angle = rng.uniform(0, 2 * np.pi, 1500)
+    apart = rng.uniform(2.3, 2.8, 1500) * radius_99
+    ring = np.stack([apart * np.cos(angle), apart * np.sin(angle),
+                     rng.normal(0, 2e-4, 1500)], axis=1) + food.xyz.mean(axis=0) * [1, 1, 0]
+    scene = PointCloud(np.concatenate([ring, food.xyz]))
+    plane = fit_support_plane(scene, food, up=np.array([0.0, 0.0, 1.0]))
+    assert plane.height_m(np.zeros((1, 3)))[0] == pytest.approx(0.0, abs=5e-4)
+    assert plane.inliers > 1000
+    narrow = SupportConfig(max_search_radius_factor=2.0)
+    with pytest.raises(MeshingError, match="within 2 food radii"):
+        fit_support_plane(scene, food, up=np.array([0.0, 0.0, 1.0]), cfg=narrow)
 
 
 def test_a_stray_point_far_away_is_dropped_and_does_not_stretch_the_grid():
