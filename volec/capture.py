@@ -108,6 +108,23 @@ class Intrinsics:
         uv[front] = img.reshape(-1, 2)
         return uv
 
+    def unproject(self, pixels: np.ndarray) -> np.ndarray:
+        """Camera-frame ray directions (N, 3), scaled to z = 1, of pixel coordinates (N, 2):
+        the inverse of :meth:`project` (distortion removed)."""
+        uv = np.asarray(pixels, float).reshape(-1, 2)
+        if self.is_undistorted:
+            xy = (uv - [self.cx, self.cy]) / [self.fx, self.fy]
+        else:
+            import cv2
+
+            dist = np.asarray(self.distortion, float)
+            if self.model == "OPENCV_FISHEYE":
+                xy = cv2.fisheye.undistortPoints(uv.reshape(-1, 1, 2), self.K, dist)
+            else:
+                xy = cv2.undistortPoints(uv.reshape(-1, 1, 2), self.K, dist)
+            xy = xy.reshape(-1, 2)
+        return np.column_stack([xy, np.ones(len(xy))])
+
     def scaled(self, factor: float) -> Intrinsics:
         """Intrinsics for the image resized by ``factor`` (e.g. 0.5 halves each side)."""
         return replace(

@@ -437,6 +437,9 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
         if key not in meshes:
             meshes[key] = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked, prior)
         mesh = meshes[key]
+    if len(mesh.dropped):  # the prior's points that left the masks uncovered
+        cloud = cloud.subset(~np.isin(np.arange(len(cloud)), mesh.dropped))
+        summary = {**(summary or {}), "dropped_for_masks": int(len(mesh.dropped))}
     volume = volume_ml(mesh.mesh)
     share = None
     if completion is not None:
@@ -494,6 +497,14 @@ def _notes(capture: Capture, stages: StageResults, food: FoodMesh, scale: ScaleC
         notes.append(f"the mask of {name} was left out: {why}")
     if food.completion_problem is not None:
         notes.append(f"completion was skipped: {food.completion_problem}")
+    cover = food.mesh.report.get("mask_cover", {})
+    if cover.get("prior_points_dropped"):
+        notes.append(f"{cover['prior_points_dropped']} completion points were dropped: with "
+                     "them the mesh left parts of the food masks uncovered (food the cameras "
+                     "saw)")
+    elif cover.get("uncovered_p90", 0.0) > cover.get("max_uncovered", 1.0):
+        notes.append(f"the mesh leaves {100 * cover['uncovered_p90']:.1f} % of the food masks "
+                     "uncovered in one view in ten (mask or pose errors, or food lost)")
     if not use_completion:
         notes.append("completion was off: the unseen underside is closed by the support plane "
                      "and Poisson alone (the VolE-style baseline)")
@@ -775,7 +786,7 @@ def estimate_record(capture: Capture, stages: StageResults, est: Estimate, cfg: 
         "mesh": {k: food.mesh.report.get(k) for k in (
             "faces", "vertices", "watertight", "grid_voxel_m", "cut_at_support",
             "silhouette_views", "prior_views", "carved_fraction", "pieces_dropped",
-            "dropped_volume_ml", "far_points_dropped")},
+            "dropped_volume_ml", "far_points_dropped", "mask_cover")},
         "completion": food.completion_summary,
         "completion_share": food.completion_share,
         "mirror_views": est.mirror_views,

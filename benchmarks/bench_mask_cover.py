@@ -1,0 +1,82 @@
+"""The default estimate with and without the masks' check on the shape prior's points.
+
+Usage: .venv/bin/python benchmarks/bench_mask_cover.py [--scenarios full_orbit half_orbit ...]
+       [--items apple orange ...] [--workers 2]
+
+On the stages of the volume benchmark (data/bench-sfm/ITEM-SCENARIO/work, reused when the
+notebooks or ``bench_volume.py`` made them with the current code, else recomputed), the
+default estimate is made once: its mesh report (``mask_cover``, see
+:class:`volec.meshing.MaskCoverConfig`) holds the volume and the uncovered share of the mesh
+made before the check (the default without it) beside the final ones, so both come from one
+run on the same stages. Per item: both volume errors against the ground truth (read only to
+score), the 90th-percentile view's uncovered share of the food masks before and after, how
+many repairs were kept and how many prior points they dropped; per scenario both MAPEs and a
+paired t-test of the absolute errors. Written to figures/mask_cover_SCENARIO.{csv,md}.
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+import pandas as pd
+from scipy.stats import ttest_rel
+
+from volec.experiments import map_items, scenario_capture, scenarios
+from volec.paths import experiment_dir, figures_dir
+from volec.synth import item_names
+from volec.tables import write_table
+
+
+def cover_row(item: str, scenario_name: str) -> dict[str, Any]:
+    """One item: the default's volume error with the masks' check and without it."""
+    from volec.estimate import (
+        EstimateConfig,
+        estimate_from_stages,
+        food_silhouettes,
+        load_completion_model,
+    )
+    from volec.pipeline import run_stages
+    from volec.synth import load_ground_truth_mesh
+
+    scenario = scenarios(False)[scenario_name]
+    out = scenario.folder(experiment_dir(False), item)
+    cfg = EstimateConfig()
+    capture = scenario_capture(out, scenario)
+    stages = run_stages(capture, scenario.work(out), cfg.sfm, cfg.dense, cfg.masking,
+                        stale="recompute", progress=False)
+    est = estimate_from_stages(capture, stages, load_completion_model(cfg), cfg,
+                               food_silhouettes(capture, stages, cfg))
+    truth_ml = load_ground_truth_mesh(out).volume * 1e6  # scoring only
+    cover = est.food.mesh.report.get("mask_cover") or {}
+    before_ml = cover.get("first_volume_ml", est.food.volume_ml)
+    return {"item": item, "scenario": scenario_name, "gt_ml": truth_ml,
+            "unchecked_err_pct": 100 * (before_ml / truth_ml - 1),
+            "default_err_pct": 100 * (est.food.volume_ml / truth_ml - 1),
+            "uncovered_before_pct": 100 * cover.get("first_uncovered_p90", float("nan")),
+            "uncovered_after_pct": 100 * cover.get("uncovered_p90", float("nan")),
+            "repairs": cover.get("repairs", 0),
+            "prior_points_dropped": cover.get("prior_points_dropped", 0)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenarios", nargs="+", default=["full_orbit", "half_orbit", "sparse"])
+    parser.add_argument("--items", nargs="+", default=item_names())
+    parser.add_argument("--workers", type=int, default=1)
+    args = parser.parse_args()
+    for name in args.scenarios:
+        jobs = [(item, name) for item in args.items]
+        raw = pd.DataFrame(map_items(cover_row, jobs, [f"{i} {name}" for i, _ in jobs],
+                                     args.workers, progress=True))
+        write_table(raw, figures_dir() / f"mask_cover_{name}", float_digits=2)
+        before, after = raw["unchecked_err_pct"].abs(), raw["default_err_pct"].abs()
+        p = ttest_rel(after, before).pvalue if len(raw) > 1 and (after != before).any() else None
+        print(f"{name}: {len(raw)} items, MAPE without the check {before.mean():.2f} %, "
+              f"with it (default) {after.mean():.2f} % (paired p {p}); repaired "
+              f"{int((raw['repairs'] > 0).sum())}")
+        print(raw.drop(columns=["scenario", "gt_ml"]).round(2).to_string(index=False))
+
+
+if __name__ == "__main__":
+    main()
