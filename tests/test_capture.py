@@ -233,6 +233,10 @@ def test_projection_with_distortion_inverts_opencv_undistortion():
     expected = cam[:, :2] / cam[:, 2:] * [500.0, 505.0] + [319.0, 241.0]
     np.testing.assert_allclose(pinhole.project(cam), expected, atol=1e-12)
     assert np.isnan(pinhole.project(np.array([[0.0, 0.0, -1.0]]))).all()
+    # unproject gives back each point's ray (z = 1), with and without distortion
+    for camera in (intr, pinhole):
+        np.testing.assert_allclose(camera.unproject(camera.project(cam)), cam / cam[:, 2:],
+                                   atol=1e-6)
 
 
 def test_a_mask_of_the_wrong_size_is_a_clear_error(tmp_path):

@@ -553,3 +553,64 @@ def test_prior_views_carve_only_where_they_may():
     small_truth = 4 / 3 * np.pi * small_r**3 * 1e6  # 57.9 mL against 113.1
     assert small_truth < everywhere < 0.75 * plain
     assert half == pytest.approx((plain + everywhere) / 2, rel=0.03)
+
+
+def test_uncovered_mask_rays_are_those_that_pass_the_mesh_by():
+    # The sphere's exact masks against the meshes of the sphere itself (nothing uncovered)
+    # and of a concentric one of 0.8 the radius: the uncovered share of each view is that of
+    # its tested pixels (2 px inside the mask, every third row and column) whose ray passes
+    # farther than 0.8 r from the centre, by the rays' geometry alone.
+    import trimesh
+
+    from volec.meshing import uncovered_mask_rays
+
+    r = 0.03
+    centre, _, _, views = _sphere_on_table(r, n_views=6)
+    exact = trimesh.creation.icosphere(6, r * 1.001).apply_translation(centre)
+    shares, rays = uncovered_mask_rays(exact, views)
+    assert shares.max() < 0.002 and len(rays) == len(views)
+    small = trimesh.creation.icosphere(6, 0.8 * r).apply_translation(centre)
+    shares, rays = uncovered_mask_rays(small, views)
+    for view, share, (eye, directions) in zip(views, shares, rays, strict=True):
+        inner = view.signed_distance_px[::3, ::3] < -2.0
+        rows, cols = np.nonzero(inner)
+        T = np.linalg.inv(view.T_cam_from_world)
+        d = np.stack([(cols * 3 - view.intrinsics.cx) / view.intrinsics.fx,
+                      (rows * 3 - view.intrinsics.cy) / view.intrinsics.fy,
+                      np.ones(len(rows))], -1) @ T[:3, :3].T
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        rel = centre - T[:3, 3]
+        passing = np.linalg.norm(rel - (d @ rel)[:, None] * d, axis=1)
+        assert share == pytest.approx(np.mean(passing > 0.8 * r), abs=0.01)
+        assert 0.25 < share < 0.45  # about 1 - 0.8^2 of the disc
+        np.testing.assert_allclose(eye, T[:3, 3], atol=1e-9)
+        assert len(directions) == round(share * inner.sum())
+
+
+def test_prior_points_that_leave_the_masks_uncovered_are_dropped():
+    # A sphere on a table seen above a third of its height; a shape prior's points put its
+    # lower part at 0.7 of the radius (a completion that pulled the unseen side in). The mesh
+    # with them misses the lower part of every mask; the check drops them and the hull,
+    # carved by the exact masks, closes the sphere again (without any prior points it is
+    # within a few per cent of the sphere).
+    r = 0.03
+    centre, d, table, views = _sphere_on_table(r)
+    seen = d[:, 2] > -1 / 3
+    below = d[~seen][:4000]
+    prior = centre + 0.7 * r * below
+    cloud = PointCloud(np.vstack([centre + r * d[seen], prior]), None,
+                       np.vstack([d[seen], np.full(prior.shape, np.nan)]))
+    observed = PointCloud(centre + r * d[seen], None, d[seen])
+    sphere_ml = 4 / 3 * np.pi * r**3 * 1e6
+    unchecked = replace(FAST, mask_cover=replace(FAST.mask_cover, rounds=0))
+    pulled = mesh_cloud(cloud, table, unchecked, views, observed)
+    checked = mesh_cloud(cloud, table, FAST, views, observed)
+    without = mesh_cloud(observed, table, FAST, views, observed)
+    assert "mask_cover" not in pulled.report
+    assert volume_ml(pulled.mesh) < 0.93 * sphere_ml
+    cover = checked.report["mask_cover"]
+    assert cover["first_uncovered_p90"] > 0.05 and cover["uncovered_p90"] < 0.01
+    assert cover["repairs"] >= 1 and len(checked.dropped) == cover["prior_points_dropped"]
+    assert (checked.dropped >= len(observed)).all()  # only the prior's points
+    assert volume_ml(checked.mesh) == pytest.approx(volume_ml(without.mesh), rel=0.02)
+    assert volume_ml(checked.mesh) == pytest.approx(sphere_ml, rel=0.04)
