@@ -27,6 +27,11 @@ The steps:
    plane) carve with a hull of their own, only where the prior may decide.
 4. The largest connected piece is kept, and a few Taubin smoothing steps (volume-preserving,
    unlike plain Laplacian smoothing) remove the grid's staircase, as the paper smooths its mesh.
+5. With the food masks, the mesh must hold them: every ray through a mask met food, so where
+   the mesh leaves many of them uncovered (:func:`uncovered_mask_rays`), a shape prior's
+   points (completion's, after the observed ones in the cloud) pulled the surface inside what
+   the cameras saw; those near the missed rays are dropped and the cloud meshed again
+   (:class:`MaskCoverConfig`).
 
 The paper's Delaunay + graph cut (OpenMVS) is replaced by steps 2-3 because they need no
 compiled code beyond open3d and scikit-image and give a closed surface by construction.
