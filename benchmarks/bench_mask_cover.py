@@ -22,8 +22,8 @@ from typing import Any
 import pandas as pd
 from scipy.stats import ttest_rel
 
-from volec.experiments import map_items, scenario_capture, scenarios
-from volec.paths import experiment_dir, figures_dir
+from volec.experiments import benchmark_stages, map_items
+from volec.paths import figures_dir
 from volec.synth import item_names
 from volec.tables import write_table
 
@@ -36,18 +36,12 @@ def cover_row(item: str, scenario_name: str) -> dict[str, Any]:
         food_silhouettes,
         load_completion_model,
     )
-    from volec.pipeline import run_stages
-    from volec.synth import load_ground_truth_mesh
 
-    scenario = scenarios(False)[scenario_name]
-    out = scenario.folder(experiment_dir(False), item)
     cfg = EstimateConfig()
-    capture = scenario_capture(out, scenario)
-    stages = run_stages(capture, scenario.work(out), cfg.sfm, cfg.dense, cfg.masking,
-                        stale="recompute", progress=False)
+    bench = benchmark_stages(item, scenario_name, cfg)
+    capture, stages, truth_ml = bench.capture, bench.stages, bench.truth_ml
     est = estimate_from_stages(capture, stages, load_completion_model(cfg), cfg,
                                food_silhouettes(capture, stages, cfg))
-    truth_ml = load_ground_truth_mesh(out).volume * 1e6  # scoring only
     cover = est.food.mesh.report.get("mask_cover") or {}
     before_ml = cover.get("first_volume_ml", est.food.volume_ml)
     return {"item": item, "scenario": scenario_name, "gt_ml": truth_ml,

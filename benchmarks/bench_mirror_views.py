@@ -24,8 +24,8 @@ from typing import Any
 import pandas as pd
 from scipy.stats import ttest_rel
 
-from volec.experiments import map_items, scenario_capture, scenarios
-from volec.paths import experiment_dir, figures_dir
+from volec.experiments import benchmark_stages, map_items
+from volec.paths import figures_dir
 from volec.synth import item_names
 from volec.tables import write_table
 
@@ -39,20 +39,14 @@ def mirror_row(item: str, scenario_name: str) -> dict[str, Any]:
         food_silhouettes,
         load_completion_model,
     )
-    from volec.pipeline import run_stages
-    from volec.synth import load_ground_truth_mesh
 
-    scenario = scenarios(False)[scenario_name]
-    out = scenario.folder(experiment_dir(False), item)
     on = EstimateConfig()
     off = replace(on, mirror_views=replace(on.mirror_views, enabled=False))
     everywhere = replace(on, mirror_views=replace(on.mirror_views, spare_seen_food=False))
-    capture = scenario_capture(out, scenario)
-    stages = run_stages(capture, scenario.work(out), on.sfm, on.dense, on.masking,
-                        stale="recompute", progress=False)
+    bench = benchmark_stages(item, scenario_name, on)
+    capture, stages, truth_ml = bench.capture, bench.stages, bench.truth_ml
     model = load_completion_model(on)
     silhouettes = food_silhouettes(capture, stages, on)
-    truth_ml = load_ground_truth_mesh(out).volume * 1e6  # scoring only
     row: dict[str, Any] = {"item": item, "scenario": scenario_name, "gt_ml": truth_ml}
     for tag, cfg in (("off", off), ("everywhere", everywhere), ("on", on)):
         est = estimate_from_basis(capture, stages, model, cfg,

@@ -39,7 +39,8 @@ from volec.metrics import (
     signed_distances_to_surface,
     signed_summary,
 )
-from volec.pipeline import config_record, run_sfm_stage, run_stages
+from volec.paths import experiment_dir
+from volec.pipeline import StageResults, config_record, run_sfm_stage, run_stages
 from volec.progress import step
 from volec.provenance import code_identity, file_digest, module_digest
 from volec.segment import given_masks
@@ -116,6 +117,28 @@ def scenario_capture(out: Path, scenario: Scenario, exact: bool = False) -> Capt
     if len(keep) == len(chosen):
         return chosen
     return replace(chosen, frames=tuple(chosen.frames[i] for i in keep))
+
+
+@dataclass(frozen=True)
+class BenchmarkStages:
+    """One item of the full-size benchmark in a scenario, as the pipeline sees it."""
+
+    capture: Capture
+    stages: StageResults
+    truth_ml: float
+    """The true volume, mL: for scoring only."""
+
+
+def benchmark_stages(item: str, scenario_name: str, cfg: EstimateConfig) -> BenchmarkStages:
+    """The capture and stage results (reused when the current code made them, else
+    recomputed) of ``item`` in the full-size benchmark's scenario ``scenario_name``, as the
+    benchmark scripts compare estimates on them."""
+    scenario = scenarios(False)[scenario_name]
+    out = scenario.folder(experiment_dir(False), item)
+    capture = scenario_capture(out, scenario)
+    stages = run_stages(capture, scenario.work(out), cfg.sfm, cfg.dense, cfg.masking,
+                        stale="recompute", progress=False)
+    return BenchmarkStages(capture, stages, load_ground_truth_mesh(out).volume * 1e6)
 
 
 def scenarios(quick: bool) -> dict[str, Scenario]:

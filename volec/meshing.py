@@ -125,12 +125,14 @@ class MaskCoverConfig:
     """How :func:`mesh_cloud` makes sure the mesh holds the food masks where a shape prior
     (completion) put its surface: the camera saw food along every ray through a mask, so the
     food's surface meets each of them, and a mesh that misses many has lost food the cameras
-    saw (:func:`uncovered_mask_shares`). Where it does, the prior's points near the missed
+    saw (:func:`uncovered_mask_rays`). Where it does, the prior's points near the missed
     rays are dropped and the cloud meshed again; the new mesh is kept when it misses at most
-    half as many. On the benchmark (phone look, SfM poses, default completion) the network
-    pulled the far or lower side of some items inwards: the 30-frame sparse apple
-    -4.59 -> +1.11 %, pear -4.94 -> -0.35 %, the half-orbit pear -8.35 -> +0.97 %; no full
-    orbit comes near the threshold (at most 0.44 %, the capsicum)."""
+    half as many. On the benchmark (phone look, SfM poses, default completion;
+    ``benchmarks/bench_mask_cover.py`` at b9eba51) the network had pulled the far or lower
+    side of some items inwards: the 30-frame sparse apple -4.59 -> +1.11 %, pear -6.57 ->
+    -0.35 %, the half-orbit pear -8.35 -> +0.97 % (MAPE sparse 2.59 -> 2.13 %, half orbit
+    2.42 -> 2.07 %); no full orbit, low or faint-skin capture came near the threshold (at most
+    0.44 %, the full-orbit capsicum) and none changed."""
 
     max_uncovered: float = 0.01
     """The mesh is repaired when, in its 90th-percentile view, more than this share of the
@@ -789,10 +791,11 @@ def mesh_cloud(cloud: PointCloud, support: SupportPlane | None = None,
     (:class:`MaskCoverConfig`)."""
     cfg = cfg or MeshingConfig()
     result = _mesh_once(cloud, support, cfg, silhouettes, observed, prior)
-    n_observed = 0 if observed is None else len(observed)
-    if (not silhouettes or not cfg.mask_cover.rounds or len(cloud) <= n_observed
-            or not np.array_equal(cloud.xyz[:n_observed], observed.xyz)):
-        return result
+    if (not silhouettes or not cfg.mask_cover.rounds or observed is None
+            or len(cloud) <= len(observed)
+            or not np.array_equal(cloud.xyz[:len(observed)], observed.xyz)):
+        return result  # no masks, or no points of a prior's to drop
+    n_observed = len(observed)
     return _covering_masks(result, cloud, n_observed,
                            lambda c: _mesh_once(c, support, cfg, silhouettes, observed, prior),
                            silhouettes, cfg.mask_cover)

@@ -15,6 +15,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from volec.capture import Capture
+from volec.meshing import ray_scene
 
 
 def distances_to_surface(points: np.ndarray, mesh: trimesh.Trimesh) -> np.ndarray:
@@ -22,20 +23,9 @@ def distances_to_surface(points: np.ndarray, mesh: trimesh.Trimesh) -> np.ndarra
     point-triangle distance)."""
     import open3d as o3d
 
-    scene = _raycasting_scene(mesh)
+    scene = ray_scene(mesh)
     query = o3d.core.Tensor(np.asarray(points, np.float32).reshape(-1, 3))
     return scene.compute_distance(query).numpy().astype(float)
-
-
-def _raycasting_scene(mesh: trimesh.Trimesh):  # -> open3d RaycastingScene
-    import open3d as o3d
-
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(
-        o3d.core.Tensor(np.asarray(mesh.vertices, np.float32)),
-        o3d.core.Tensor(np.asarray(mesh.faces, np.uint32)),
-    )
-    return scene
 
 
 def signed_distances_to_surface(points: np.ndarray, mesh: trimesh.Trimesh) -> np.ndarray:
@@ -47,7 +37,7 @@ def signed_distances_to_surface(points: np.ndarray, mesh: trimesh.Trimesh) -> np
     centre = np.asarray(mesh.bounds, float).mean(axis=0)
     local = trimesh.Trimesh((np.asarray(mesh.vertices) - centre) * 1000.0, mesh.faces,
                             process=False)
-    scene = _raycasting_scene(local)
+    scene = ray_scene(local)
     query = o3d.core.Tensor(((np.asarray(points, float).reshape(-1, 3) - centre) * 1000.0)
                             .astype(np.float32))
     return scene.compute_signed_distance(query).numpy().astype(float) / 1000.0
