@@ -16,9 +16,9 @@ from volec.dense import (
     depth_normals,
     depth_range,
     estimate_depth,
-    frontal_or_filling,
     project,
     select_sources,
+    strong_or_filling,
     voxel_merge,
 )
 from volec.geometry import invert_rigid, look_at_opencv
@@ -150,6 +150,22 @@ def test_consistent_exact_depths_fuse_onto_the_surface(plane_scene):
     assert len(X_bad) == 0
 
 
+def test_depths_one_neighbour_confirms_are_kept_only_to_fill(plane_scene):
+    from volec.dense import DepthMap
+
+    views, depths = plane_scene
+    # only neighbour 1 is right; the others are 5 % too far (as noisy faint-skin depths are)
+    maps = {i: DepthMap((d * (1.05 if i > 1 else 1.0)).astype(np.float32),
+                        np.ones_like(d, np.float32), []) for i, d in enumerate(depths)}
+    _, X_two, _ = consistent_points(views, maps, 0, [1, 2, 3, 4], DenseConfig())
+    assert len(X_two) == 0
+    pix, X, count = consistent_points(views, maps, 0, [1, 2, 3, 4],
+                                      DenseConfig(fill_min_views=1))
+    assert len(X) > 0.5 * H * W
+    assert np.all(count == 1)
+    np.testing.assert_allclose(X[:, 2], 0.0, atol=1e-5)  # the mean of two exact points
+
+
 def test_normals_of_a_plane_depth_map_face_the_camera(plane_scene):
     views, depths = plane_scene
     n = depth_normals(views[1], depths[1].astype(np.float32))
@@ -237,8 +253,7 @@ def test_oblique_points_are_kept_only_where_no_frontal_point_covers_the_surface(
     xyz = np.vstack([frontal_part, wall + [0.0, 0.0, 2e-4], wall[:5] + [0.0, 0.0, 0.05]])
     cosine = np.concatenate([np.full(len(frontal_part), 0.9), np.full(len(wall), 0.35),
                              np.full(5, 0.35)])
-    cfg = DenseConfig(min_view_cosine=0.5, oblique_gap_m=0.0015)
-    keep = frontal_or_filling(xyz, cosine, cfg)
+    keep = strong_or_filling(xyz, cosine >= 0.5, 0.0015)
     assert keep[:len(frontal_part)].all()
     oblique_x = wall[:, 0]
     kept_oblique = keep[len(frontal_part):len(frontal_part) + len(wall)]
@@ -248,7 +263,8 @@ def test_oblique_points_are_kept_only_where_no_frontal_point_covers_the_surface(
     assert kept_oblique[oblique_x > 0.0016].all()
     assert keep[-5:].all()  # far from the wall: nothing covers it
     # without any frontal point every oblique one is kept
-    assert frontal_or_filling(xyz[len(frontal_part):], cosine[len(frontal_part):], cfg).all()
+    assert strong_or_filling(xyz[len(frontal_part):], cosine[len(frontal_part):] >= 0.5,
+                             0.0015).all()
 
 
 def _faint(views: list[View], contrast: float, noise: float) -> list[View]:

@@ -129,7 +129,15 @@ class DenseConfig:
     geometric_max_relative_depth: float = 0.005
     """... and within this fraction of the depth."""
     geometric_min_views: int = 2
-    """Neighbour depth maps that must agree for a depth to be kept."""
+    """Neighbour depth maps that must agree for a depth to be kept everywhere."""
+    fill_min_views: int = 2
+    """A depth that at least this many (but fewer than ``geometric_min_views``) neighbour depth
+    maps agree with is kept where no point that ``geometric_min_views`` confirmed lies within
+    ``fill_gap_m``: it fills a hole, as on a faint skin, whose noisier depths two neighbours
+    rarely both confirm. Equal to ``geometric_min_views``: off."""
+    fill_gap_m: float = 0.0015
+    """With ``fill_min_views``: how far, metres, the nearest confirmed point must be for a
+    depth fewer neighbours agree with to fill the gap."""
     min_view_cosine: float = 0.5
     """A depth whose surface the reference camera sees more obliquely than this (the cosine
     between the surface normal and the direction to the camera) is oblique: a window on a
@@ -647,8 +655,9 @@ def _sample_depth(depth_m: np.ndarray, uv: np.ndarray) -> np.ndarray:
 def consistent_points(views: list[View], maps: dict[int, DepthMap], ref_pos: int,
                       neighbours: list[int], cfg: DenseConfig
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The reference's depths that ``geometric_min_views`` neighbour depth maps agree with
-    (``maps`` by position in ``views``; ``neighbours`` must have one).
+    """The reference's depths that ``geometric_min_views`` neighbour depth maps agree with, or
+    ``fill_min_views`` where that is fewer (``maps`` by position in ``views``;
+    ``neighbours`` must have one).
 
     Returns (pixel indices (N, 2) as (row, col), fused world points (N, 3) -- the mean of
     the reference's point and its agreeing neighbours' --, agreeing-view counts (N,)).
@@ -673,7 +682,7 @@ def consistent_points(views: list[View], maps: dict[int, DepthMap], ref_pos: int
                  & (np.abs(d_back - d) <= cfg.geometric_max_relative_depth * d))
         total[agree] += X_n[agree]
         count += agree
-    keep = count >= cfg.geometric_min_views
+    keep = count >= min(cfg.geometric_min_views, cfg.fill_min_views)
     fused = total[keep] / (count[keep] + 1)[:, None]
     return np.stack([rows[keep], cols[keep]], axis=1), fused, count[keep]
 
@@ -785,11 +794,11 @@ def fuse_depth_maps(plan: DensePlan, maps: dict[int, DepthMap], cfg: DenseConfig
     """The consistent depths of all reference views as one cloud with colours and normals,
     merged on the fusion voxel grid; with the number of depths estimated and of those that
     neighbouring depth maps confirmed."""
-    xyz, rgb, normals, cosines = [], [], [], []
+    xyz, rgb, normals, cosines, agreeing = [], [], [], [], []
     n_estimated = 0
     for r in maps:
         n_estimated += int((maps[r].depth_m > 0).sum())
-        pix, X, _ = consistent_points(plan.views, maps, r, plan.checks[r], cfg)
+        pix, X, count = consistent_points(plan.views, maps, r, plan.checks[r], cfg)
         if not len(X):
             continue
         view = plan.views[r]
@@ -802,30 +811,35 @@ def fuse_depth_maps(plan: DensePlan, maps: dict[int, DepthMap], cfg: DenseConfig
         rgb.append(view.rgb[pix[seen, 0], pix[seen, 1]])
         normals.append(n[seen])
         cosines.append(cosine[seen])
+        agreeing.append(count[seen])
     if not xyz:
         raise DenseError(
             "no depth survived the multi-view consistency check: the frames may be blurred, "
             "the food textureless, or the poses wrong (check the SfM summary)"
         )
     fused = PointCloud(np.concatenate(xyz), np.concatenate(rgb), np.concatenate(normals))
-    fused = fused.subset(frontal_or_filling(fused.xyz, np.concatenate(cosines), cfg))
+    confirmed = np.concatenate(agreeing) >= cfg.geometric_min_views
+    keep = strong_or_filling(fused.xyz, confirmed, cfg.fill_gap_m)
+    fused, cosine = fused.subset(keep), np.concatenate(cosines)[keep]
+    fused = fused.subset(strong_or_filling(fused.xyz, cosine >= cfg.min_view_cosine,
+                                           cfg.oblique_gap_m))
     fused = fused.subset(np.linalg.norm(fused.normals, axis=1) > 0.5)
     return voxel_merge(fused, cfg.fusion_voxel_m), n_estimated, len(fused)
 
 
-def frontal_or_filling(xyz: np.ndarray, cosine: np.ndarray, cfg: DenseConfig) -> np.ndarray:
-    """(N,) which of the points ``xyz`` (N, 3), each seen by its reference view at
-    ``cosine``, to keep: the frontal ones (``cfg.min_view_cosine`` or better), and the oblique
-    ones that no frontal point lies within ``cfg.oblique_gap_m`` of (they fill a hole)."""
+def strong_or_filling(xyz: np.ndarray, strong: np.ndarray, gap_m: float) -> np.ndarray:
+    """(N,) which of the points ``xyz`` (N, 3) to keep: the ``strong`` ones (N,) and the weak
+    ones that no strong point lies within ``gap_m`` of (they fill a hole); all when none or
+    all are strong. Used with frontal against oblique depths (``min_view_cosine``,
+    ``oblique_gap_m``) and with fully against partly confirmed ones (``fill_min_views``)."""
     from scipy.spatial import cKDTree
 
-    frontal = cosine >= cfg.min_view_cosine
-    if frontal.all() or not frontal.any():
+    if strong.all() or not strong.any():
         return np.ones(len(xyz), bool)
-    keep = frontal.copy()
-    oblique = np.flatnonzero(~frontal)
-    gap = cKDTree(xyz[frontal]).query(xyz[oblique], distance_upper_bound=cfg.oblique_gap_m)[0]
-    keep[oblique[np.isinf(gap)]] = True
+    keep = strong.copy()
+    weak = np.flatnonzero(~strong)
+    gap = cKDTree(xyz[strong]).query(xyz[weak], distance_upper_bound=gap_m)[0]
+    keep[weak[np.isinf(gap)]] = True
     return keep
 
 
