@@ -6,7 +6,7 @@ Usage: .venv/bin/python benchmarks/bench_dense_coverage.py [--scenario smooth]
 Per item of the full-size benchmark's scenario, on its SfM stage (reused from
 data/bench-sfm/ITEM-SCENARIO/work, or run there), dense stereo and masking are run in memory
 (nothing in the work folder changes) with the given masks, once with the default settings
-and once with the ``--set`` ones (``SECTION.FIELD=VALUE`` of
+and, when given, once with the ``--set`` ones (``SECTION.FIELD=VALUE`` of
 :class:`volec.estimate.EstimateConfig`, as ``bench_volume.py``). Scored against the true
 surface (read only to score): the share of the surface at least two cameras see that the
 masked cloud covers within 2 mm (``coverage_pct``), the masked cloud's signed distance
@@ -53,7 +53,8 @@ def coverage_rows(item: str, scenario_name: str, settings: tuple[str, ...]
     for setting in settings:
         changed = with_setting(changed, setting)
     rows = []
-    for name, cfg in (("default", base), (" ".join(settings) or "default", changed)):
+    configs = [("default", base)] + ([(" ".join(settings), changed)] if settings else [])
+    for name, cfg in configs:
         dense = run_dense(capture, masks, sfm.T_world_from_cam, sfm.registered, sfm.points_xyz,
                           cfg.dense, progress=False)
         masked = mask_cloud(dense.cloud, capture, masks, sfm.T_world_from_cam, sfm.registered,
