@@ -614,3 +614,54 @@ def test_prior_points_that_leave_the_masks_uncovered_are_dropped():
     assert (checked.dropped >= len(observed)).all()  # only the prior's points
     assert volume_ml(checked.mesh) == pytest.approx(volume_ml(without.mesh), rel=0.02)
     assert volume_ml(checked.mesh) == pytest.approx(sphere_ml, rel=0.04)
+
+
+def test_prior_points_that_cut_into_enclosed_space_are_dropped():
+    # The sphere of the masks' test, its lower part pulled to 0.7 of the radius by a prior's
+    # points, with the masks' check off: the space the seen surface encloses (here the
+    # sphere's interior within 0.95 of the radius) is partly outside that mesh. The check
+    # drops the prior's points near what it misses and the mesh holds the space again.
+    from volec.meshing import FoodCoverConfig, deep_points, missed_points
+
+    r = 0.03
+    centre, d, table, views = _sphere_on_table(r)
+    seen = d[:, 2] > -1 / 3
+    prior = centre + 0.7 * r * d[~seen][:4000]
+    observed = PointCloud(centre + r * d[seen], None, d[seen])
+    cloud = PointCloud(np.vstack([observed.xyz, prior]), None,
+                       np.vstack([d[seen], np.full(prior.shape, np.nan)]))
+    axis = np.arange(-0.95 * r, 0.95 * r, 0.002)
+    grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
+    enclosed = centre + grid[np.linalg.norm(grid, axis=1) < 0.95 * r]
+    deep = deep_points(enclosed, observed.xyz, 0.003)
+    assert len(deep) < len(enclosed)  # those within 3 mm of the seen cap do not count
+    no_masks = replace(FAST.mask_cover, rounds=0)
+    pulled = mesh_cloud(cloud, table, replace(FAST, mask_cover=no_masks), views, observed,
+                        food_points=enclosed)
+    share, _ = missed_points(pulled.mesh, deep)
+    assert share > 0.05 and "food_cover" not in pulled.report  # off by default
+    checked = mesh_cloud(cloud, table, replace(FAST, mask_cover=no_masks,
+                                               food_cover=FoodCoverConfig(rounds=2)),
+                         views, observed, food_points=enclosed)
+    cover = checked.report["food_cover"]
+    assert cover["first_missed_share"] == pytest.approx(share, abs=1e-5)
+    assert cover["repairs"] >= 1 and cover["missed_share"] < 0.01
+    assert len(checked.dropped) == cover["prior_points_dropped"]
+    assert (checked.dropped >= len(observed)).all()  # only the prior's points
+    sphere_ml = 4 / 3 * np.pi * r**3 * 1e6
+    assert volume_ml(pulled.mesh) < 0.93 * sphere_ml
+    assert volume_ml(checked.mesh) == pytest.approx(sphere_ml, rel=0.04)
+
+
+def test_missed_points_are_those_outside_the_mesh():
+    import trimesh
+
+    from volec.meshing import missed_points, near_points
+
+    ball = trimesh.creation.icosphere(5, 0.01)
+    points = np.array([[0.0, 0.0, 0.0], [0.005, 0.0, 0.0], [0.02, 0.0, 0.0], [0.0, 0.0, -0.03]])
+    share, missed = missed_points(ball, points)
+    assert share == 0.5
+    np.testing.assert_allclose(missed, points[2:])
+    near = near_points(np.array([[0.021, 0.0, 0.0], [0.0, 0.0, 0.0]]), missed, 0.002)
+    np.testing.assert_array_equal(near, [True, False])

@@ -429,17 +429,24 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     if completion is not None:
         cloud = completion.cloud
         summary = {"method": completion_method_used(completion, cfg), **completion.summary}
+    enclosed = None  # the space the seen surface encloses, for the meshing's check
+    if space is not None and cfg.meshing.food_cover.rounds:
+        enclosed = space.points()[space.state.ravel() == FOOD]
     if meshes is None:
-        mesh = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked, prior)
-    else:  # the same cloud carved by the same views
+        mesh = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked, prior, enclosed)
+    else:  # the same cloud carved by the same views (and the same space: one basis)
         key = cloud_digest(cloud) + views_digest([*(silhouettes or []),
                                                   *(prior.views if prior else ())])
         if key not in meshes:
-            meshes[key] = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked, prior)
+            meshes[key] = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked, prior,
+                                     enclosed)
         mesh = meshes[key]
-    if len(mesh.dropped):  # the prior's points that left the masks uncovered
+    if len(mesh.dropped):  # the prior's points that the meshing's checks dropped
         cloud = cloud.subset(~np.isin(np.arange(len(cloud)), mesh.dropped))
-        summary = {**(summary or {}), "dropped_for_masks": int(len(mesh.dropped))}
+        summary = {**(summary or {}), **{
+            f"dropped_for_{name}": mesh.report[check]["prior_points_dropped"]
+            for check, name in (("mask_cover", "masks"), ("food_cover", "enclosed_space"))
+            if mesh.report.get(check, {}).get("prior_points_dropped")}}
     volume = volume_ml(mesh.mesh)
     share = None
     if completion is not None:
@@ -505,6 +512,10 @@ def _notes(capture: Capture, stages: StageResults, food: FoodMesh, scale: ScaleC
     elif cover.get("uncovered_p90", 0.0) > cover.get("max_uncovered", 1.0):
         notes.append(f"the mesh leaves {100 * cover['uncovered_p90']:.1f} % of the food masks "
                      "uncovered in one view in ten (mask or pose errors, or food lost)")
+    enclosed = food.mesh.report.get("food_cover", {})
+    if enclosed.get("prior_points_dropped"):
+        notes.append(f"{enclosed['prior_points_dropped']} completion points were dropped: with "
+                     "them the mesh cut into space the seen surface encloses")
     if not use_completion:
         notes.append("completion was off: the unseen underside is closed by the support plane "
                      "and Poisson alone (the VolE-style baseline)")
@@ -786,7 +797,7 @@ def estimate_record(capture: Capture, stages: StageResults, est: Estimate, cfg: 
         "mesh": {k: food.mesh.report.get(k) for k in (
             "faces", "vertices", "watertight", "grid_voxel_m", "cut_at_support",
             "silhouette_views", "prior_views", "carved_fraction", "pieces_dropped",
-            "dropped_volume_ml", "far_points_dropped", "mask_cover")},
+            "dropped_volume_ml", "far_points_dropped", "mask_cover", "food_cover")},
         "completion": food.completion_summary,
         "completion_share": food.completion_share,
         "mirror_views": est.mirror_views,
