@@ -636,10 +636,11 @@ def test_prior_points_that_cut_into_enclosed_space_are_dropped():
     deep = deep_points(enclosed, observed.xyz, 0.003)
     assert len(deep) < len(enclosed)  # those within 3 mm of the seen cap do not count
     no_masks = replace(FAST.mask_cover, rounds=0)
-    pulled = mesh_cloud(cloud, table, replace(FAST, mask_cover=no_masks), views, observed,
-                        food_points=enclosed)
+    pulled = mesh_cloud(cloud, table, replace(FAST, mask_cover=no_masks,
+                                              food_cover=FoodCoverConfig(rounds=0)),
+                        views, observed, food_points=enclosed)
     share, _ = missed_points(pulled.mesh, deep)
-    assert share > 0.05 and "food_cover" not in pulled.report  # off by default
+    assert share > 0.05 and "food_cover" not in pulled.report
     checked = mesh_cloud(cloud, table, replace(FAST, mask_cover=no_masks,
                                                food_cover=FoodCoverConfig(rounds=2)),
                          views, observed, food_points=enclosed)
