@@ -165,8 +165,9 @@ class FoodCoverConfig:
     2.06 %). No other item of the sparse, half and full orbits or the faint skins changed:
     some missed 1.4-4.7 % (the sparse banana, capsicum and chocolate bomb, the full-orbit
     capsicum), but dropping points did not halve that. But the low-elevation donut went
-    from +8.74 to +12.02 % (low MAPE 1.84 -> 2.17 %): seen only from low, its hole is not
-    seen through, and the space sorting calls part of it enclosed, so the check filled it.
+    from +8.74 to +12.02 % (low MAPE 1.84 -> 2.17 %); likely (not yet checked) because,
+    seen only from low, its hole is not seen through and the space sorting calls part of it
+    enclosed, so the check filled it.
     It can be turned on once the enclosed label is trusted in such hollows.
     """
 
