@@ -150,7 +150,7 @@ def test_consistent_exact_depths_fuse_onto_the_surface(plane_scene):
     assert len(X_bad) == 0
 
 
-def test_depths_one_neighbour_confirms_are_kept_only_to_fill(plane_scene):
+def test_depths_one_neighbour_confirms_are_kept_with_fill_min_views_1(plane_scene):
     from volec.dense import DepthMap
 
     views, depths = plane_scene

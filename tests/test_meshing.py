@@ -621,7 +621,7 @@ def test_prior_points_that_cut_into_enclosed_space_are_dropped():
     # points, with the masks' check off: the space the seen surface encloses (here the
     # sphere's interior within 0.95 of the radius) is partly outside that mesh. The check
     # drops the prior's points near what it misses and the mesh holds the space again.
-    from volec.meshing import FoodCoverConfig, deep_points, missed_points
+    from volec.meshing import FoodCoverConfig, missed_points, near_points
 
     r = 0.03
     centre, d, table, views = _sphere_on_table(r)
@@ -633,7 +633,7 @@ def test_prior_points_that_cut_into_enclosed_space_are_dropped():
     axis = np.arange(-0.95 * r, 0.95 * r, 0.002)
     grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
     enclosed = centre + grid[np.linalg.norm(grid, axis=1) < 0.95 * r]
-    deep = deep_points(enclosed, observed.xyz, 0.003)
+    deep = enclosed[~near_points(enclosed, observed.xyz, 0.003)]
     assert len(deep) < len(enclosed)  # those within 3 mm of the seen cap do not count
     no_masks = replace(FAST.mask_cover, rounds=0)
     pulled = mesh_cloud(cloud, table, replace(FAST, mask_cover=no_masks,

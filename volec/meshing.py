@@ -503,7 +503,8 @@ class MeshResult:
     report: dict[str, Any] = field(default_factory=dict)
     dropped: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     """Indices into the cloud given to :func:`mesh_cloud` of the shape prior's points that
-    were not meshed because they left the food masks uncovered (:class:`MaskCoverConfig`)."""
+    were not meshed because they left the food masks uncovered (:class:`MaskCoverConfig`) or
+    cut into the enclosed space (:class:`FoodCoverConfig`)."""
 
 
 def support_candidates(scene: PointCloud, food: PointCloud, cfg: SupportConfig) -> np.ndarray:
@@ -843,7 +844,8 @@ def mesh_cloud(cloud: PointCloud, support: SupportPlane | None = None,
         checks["mask_cover"]["max_uncovered"] = masks.max_uncovered
     enclosed = cfg.food_cover
     if food_points is not None and enclosed.rounds:
-        deep = deep_points(food_points, observed.xyz, enclosed.depth_m)
+        # enclosed points nearer the observed surface straddle its own noise
+        deep = food_points[~near_points(food_points, observed.xyz, enclosed.depth_m)]
         if len(deep):
             result, kept, checks["food_cover"] = _repaired(
                 result, cloud, kept, n_observed, remesh,
@@ -859,14 +861,6 @@ def _uncovered_p90(mesh: trimesh.Trimesh, views: list[SilhouetteView], cfg: Mask
     """The 90th-percentile view's share of uncovered mask rays, and those rays."""
     shares, rays = uncovered_mask_rays(mesh, views, cfg.inset_px, cfg.stride_px)
     return float(np.percentile(shares, 90)), rays
-
-
-def deep_points(points: np.ndarray, observed_xyz: np.ndarray, depth_m: float) -> np.ndarray:
-    """The ``points`` (M, 3) farther than ``depth_m`` from every observed point."""
-    from scipy.spatial import cKDTree
-
-    distance, _ = cKDTree(observed_xyz).query(points)
-    return points[distance > depth_m]
 
 
 def missed_points(mesh: trimesh.Trimesh, points: np.ndarray) -> tuple[float, np.ndarray]:
