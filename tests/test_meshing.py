@@ -635,6 +635,7 @@ def test_prior_points_that_cut_into_enclosed_space_are_dropped():
     enclosed = centre + grid[np.linalg.norm(grid, axis=1) < 0.95 * r]
     deep = enclosed[~near_points(enclosed, observed.xyz, 0.003)]
     assert len(deep) < len(enclosed)  # those within 3 mm of the seen cap do not count
+    deep = deep[deep[:, 2] > 0.002]  # nor those within 2 mm of the table
     no_masks = replace(FAST.mask_cover, rounds=0)
     pulled = mesh_cloud(cloud, table, replace(FAST, mask_cover=no_masks,
                                               food_cover=FoodCoverConfig(rounds=0)),
@@ -652,6 +653,33 @@ def test_prior_points_that_cut_into_enclosed_space_are_dropped():
     sphere_ml = 4 / 3 * np.pi * r**3 * 1e6
     assert volume_ml(pulled.mesh) < 0.93 * sphere_ml
     assert volume_ml(checked.mesh) == pytest.approx(sphere_ml, rel=0.04)
+
+
+def test_enclosed_space_at_the_contact_with_the_support_does_not_count():
+    # The pulled sphere again: the only enclosed points given lie in the 2 mm under it, at
+    # the table, which the plate's fit alone encloses. The mesh misses them all, but they
+    # do not count (unless the check is told to count them from the table up).
+    from volec.meshing import FoodCoverConfig
+
+    r = 0.03
+    centre, d, table, views = _sphere_on_table(r)
+    seen = d[:, 2] > -1 / 3
+    prior = centre + 0.7 * r * d[~seen][:4000]
+    observed = PointCloud(centre + r * d[seen], None, d[seen])
+    cloud = PointCloud(np.vstack([observed.xyz, prior]), None,
+                       np.vstack([d[seen], np.full(prior.shape, np.nan)]))
+    axis = np.arange(-r, r, 0.001)
+    grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
+    contact = centre + grid[np.linalg.norm(grid, axis=1) < r]
+    contact = contact[contact[:, 2] < 0.0019]
+    assert len(contact) > 100
+    no_masks = replace(FAST.mask_cover, rounds=0)
+    counted = mesh_cloud(cloud, table, replace(FAST, mask_cover=no_masks, food_cover=(
+        FoodCoverConfig(rounds=2, above_support_m=0.0))), views, observed, food_points=contact)
+    assert counted.report["food_cover"]["first_missed_share"] > 0.9
+    skipped = mesh_cloud(cloud, table, replace(FAST, mask_cover=no_masks, food_cover=(
+        FoodCoverConfig(rounds=2))), views, observed, food_points=contact)
+    assert "food_cover" not in skipped.report and not len(skipped.dropped)
 
 
 def test_missed_points_are_those_outside_the_mesh():

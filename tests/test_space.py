@@ -153,3 +153,10 @@ def test_a_patch_stereo_missed_leaves_the_food_behind_it_unknown_not_empty():
     assert behind_patch.sum() > 50
     assert not (states[behind_patch] == EMPTY).any()
     assert (states[radius < 0.85 * R] == EMPTY).mean() == 0
+
+
+def test_the_points_of_a_state_are_those_the_whole_grid_gives():
+    state = np.random.default_rng(0).choice([EMPTY, FOOD, UNKNOWN], size=(4, 5, 6)).astype(np.int8)
+    grid = SpaceGrid(np.array([0.1, -0.2, 0.3]), 0.002, state)
+    for s in (EMPTY, FOOD, UNKNOWN):
+        np.testing.assert_allclose(grid.points_in(s), grid.points()[state.ravel() == s])

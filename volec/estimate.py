@@ -431,7 +431,7 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
         summary = {"method": completion_method_used(completion, cfg), **completion.summary}
     enclosed = None  # the space the seen surface encloses, for the meshing's check
     if space is not None and cfg.meshing.food_cover.rounds:
-        enclosed = space.points()[space.state.ravel() == FOOD]
+        enclosed = space.points_in(FOOD)
     if meshes is None:
         mesh = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked, prior, enclosed)
     else:  # the same cloud carved by the same views (and the same space: one basis)

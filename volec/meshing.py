@@ -175,6 +175,10 @@ class FoodCoverConfig:
     depth_m: float = 0.003
     """Only enclosed grid points farther than this from every observed point count (nearer
     ones straddle the surface's own noise)."""
+    above_support_m: float = 0.002
+    """Only enclosed grid points higher than this above the support plane count: the plate
+    closes the space under a rounded bottom, so the thin wedge at the contact is enclosed
+    only by the plate's fit, and a mesh that leaves it out has not cut into the item."""
     reach_m: float = 0.008
     """Prior points within this distance of a missed grid point are dropped."""
     rounds: int = 0
@@ -846,6 +850,8 @@ def mesh_cloud(cloud: PointCloud, support: SupportPlane | None = None,
     if food_points is not None and enclosed.rounds:
         # enclosed points nearer the observed surface straddle its own noise
         deep = food_points[~near_points(food_points, observed.xyz, enclosed.depth_m)]
+        if support is not None:
+            deep = deep[support.height_m(deep) > enclosed.above_support_m]
         if len(deep):
             result, kept, checks["food_cover"] = _repaired(
                 result, cloud, kept, n_observed, remesh,

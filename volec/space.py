@@ -113,6 +113,10 @@ class SpaceGrid:
         axes = [self.lower[i] + self.pitch_m * np.arange(n) for i, n in enumerate(self.state.shape)]
         return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
 
+    def points_in(self, state: int) -> np.ndarray:
+        """(M, 3) the grid points of ``state``, metres (without making the whole grid's)."""
+        return self.lower + self.pitch_m * np.argwhere(self.state == state)
+
     def states_at(self, points: np.ndarray) -> np.ndarray:
         """(N,) the state of the grid point nearest to each of ``points`` (EMPTY beyond the
         grid)."""
