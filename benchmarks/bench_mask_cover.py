@@ -1,7 +1,7 @@
-"""The default estimate with and without the masks' check on the shape prior's points.
+"""The default estimate with and without the meshing's checks on the shape prior's points.
 
 Usage: .venv/bin/python benchmarks/bench_mask_cover.py [--scenarios full_orbit half_orbit ...]
-       [--items apple orange ...] [--workers 2] [--set meshing.food_cover.rounds=2]
+       [--items apple orange ...] [--workers 2] [--set meshing.food_cover.rounds=0]
 
 On the stages of the volume benchmark (data/bench-sfm/ITEM-SCENARIO/work, reused when the
 notebooks or ``bench_volume.py`` made them with the current code, else recomputed), the
@@ -10,11 +10,12 @@ default estimate is made once: its mesh report (``mask_cover``, see
 made before the check (the default without it) beside the final ones, so both come from one
 run on the same stages. Per item: both volume errors against the ground truth (read only to
 score), the 90th-percentile view's uncovered share of the food masks before and after, how
-many repairs were kept and how many prior points they dropped; per scenario both MAPEs and a
-paired t-test of the absolute errors. With ``--set meshing.food_cover.rounds=2`` the
-check that the mesh holds the space the seen surface encloses runs after it
-(:class:`volec.meshing.FoodCoverConfig`); its record gives the volume before it
-(``before_enclosed_check_err_pct``), the missed share before and after, and its repairs.
+many repairs were kept and how many prior points they dropped;
+per scenario both MAPEs and a paired t-test of the absolute errors. The check that the mesh
+holds the space the seen surface encloses (:class:`volec.meshing.FoodCoverConfig`, on by
+default; ``--set meshing.food_cover.rounds=0`` turns it off) runs after it; its record gives
+the volume before it (``before_enclosed_check_err_pct``), the missed share before and after,
+and its repairs.
 Written to figures/mask_cover_SCENARIO.{csv,md}.
 """
 
@@ -75,7 +76,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
                         help="change a setting of the default, e.g. "
-                             "meshing.food_cover.rounds=2 (the enclosed space's check)")
+                             "meshing.food_cover.rounds=0 (no enclosed space's check)")
     args = parser.parse_args()
     for name in args.scenarios:
         jobs = [(item, name, tuple(args.set)) for item in args.items]

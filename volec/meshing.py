@@ -157,17 +157,19 @@ class FoodCoverConfig:
     enclosed space well behind the observed surface is food, so a mesh that leaves much of it
     out has cut into the item. Where it does, the prior's points near the missed space are
     dropped and the cloud meshed again; the new mesh is kept when it misses at most half as
-    much. Off by default (``rounds`` 0). On the benchmark (phone look, SfM poses, default
-    completion; ``benchmarks/bench_mask_cover.py --set meshing.food_cover.rounds=2`` at
-    6b16637, after the masks' check) the network had pulled the 30-frame sparse donut's lower
-    inner side in: 1.6 % of its enclosed space missed, 0.5 % after, and its volume -5.73 ->
-    -0.07 % (sparse MAPE 2.13 -> 1.86 %); the half-orbit orange -0.85 -> +0.63 % (2.07 ->
-    2.06 %). No other item of the sparse, half and full orbits or the faint skins changed:
-    some missed 1.4-4.7 % (the sparse banana, capsicum and chocolate bomb, the full-orbit
-    capsicum), but dropping points did not halve that. But the low-elevation donut went
-    from +8.74 to +12.02 % (low MAPE 1.84 -> 2.17 %), though 72 % of the enclosed points its
-    mesh missed lie inside the true donut (62 % on the sparse one), most near the plate:
-    the points dropped near them had held the surface in elsewhere."""
+    much. On by default since d96342d's measurement (phone look, SfM poses, default
+    completion; ``benchmarks/bench_mask_cover.py --set meshing.food_cover.rounds=2``, after
+    the masks' check, before -> after this one): the network had pulled the 30-frame sparse
+    donut's lower inner side in, 1.4 % of its enclosed space missed and 0.5 % after, volume
+    -5.73 -> -0.37 % (sparse MAPE 2.13 -> 1.87 %); the half-orbit orange -0.85 -> +0.63 %
+    (2.07 -> 2.06 %); nothing else changed on the sparse, half and full orbits (1.51 %), the
+    low cameras (1.84 %) or the faint skins (1.93 %). Counting the space within
+    ``above_support_m`` of the plate too, the low-elevation donut had been "repaired" from
+    +8.74 to +12.02 %: its mesh missed enclosed points 1.6 mm above the plate (median), and
+    without the prior's points there Poisson closed the gap under the torus's rounded
+    bottom, inside the ring and out. Some meshes miss 1.4-4.5 % with no repair that halves
+    it (the capsicum in every scenario, the sparse and faint-skin banana, the chocolate bomb
+    and cake, the faint-skin pear): theirs stay as they were."""
 
     max_missed: float = 0.01
     """The mesh is repaired when more than this share of the enclosed space deeper than
@@ -181,8 +183,8 @@ class FoodCoverConfig:
     only by the plate's fit, and a mesh that leaves it out has not cut into the item."""
     reach_m: float = 0.008
     """Prior points within this distance of a missed grid point are dropped."""
-    rounds: int = 0
-    """At most this many repairs (0: no check, the default)."""
+    rounds: int = 2
+    """At most this many repairs (0: no check)."""
 
 
 @dataclass(frozen=True)
