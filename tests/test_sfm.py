@@ -289,24 +289,3 @@ def test_sampson_distance_is_zero_on_the_epipolar_geometry_and_grows_off_it():
     # puts them about 0.01 / sqrt(2) off in the Sampson sense (split over the two views)
     off = sampson_distance(E, x1, x2 + [0.0, 0.01])
     assert 0.004 < np.median(off) < 0.011
-
-
-def test_matching_gives_the_same_poses_on_one_thread_or_several(small_result, tmp_path):
-    # matching takes OpenCV's thread count; its verification is seeded, so the matches, and
-    # the poses made from them, do not depend on it
-    import cv2
-
-    from volec.sfm import matching_threads
-
-    result, reported = small_result
-    before = cv2.getNumThreads()
-    try:
-        cv2.setNumThreads(3)
-        assert matching_threads(SfmConfig()) == 3
-        assert matching_threads(SfmConfig(num_threads=2)) == 2
-        cv2.setNumThreads(1)
-        one = run_sfm(reported, tmp_path / "one")
-    finally:
-        cv2.setNumThreads(before)
-    np.testing.assert_array_equal(one.T_world_from_cam, result.T_world_from_cam)
-    np.testing.assert_array_equal(one.points_xyz, result.points_xyz)

@@ -143,8 +143,12 @@ class SfmConfig:
     -1.23 % then -0.44 % without completion); with one thread, three runs gave the same poses
     bit for bit. Multi-threaded extraction alone was enough to lose that. The cost, the pear
     alone on 2 cores: 34.3 s against 41.7 s (1.22 times); none where each capture has a core of
-    its own (``volec batch``, the experiments). Matching is the exception: seeded, it
-    repeats on any number of threads, and takes OpenCV's (:func:`matching_threads`)."""
+    its own (``volec batch``, the experiments). Matching too: it once took OpenCV's thread
+    count, its verification's RANSAC seeded, which repeated on the apple's 600 pairs; but
+    COLMAP's random generator is one per thread, so which pair draws which numbers likely
+    follows the threads' timing. The 16-frame cake of the tests, matched on two threads,
+    came out with 91 instead of 92 verified pairs in one run of six (camera centres 0.3 mm
+    apart); on one thread, ten runs gave the same poses bit for bit."""
     seed: int = 0
     """Seed for COLMAP's and the alignment's RANSAC."""
 
@@ -324,23 +328,10 @@ def drift_model_alignment(
     return float(x[0]), x[1:4], x[4:].reshape(n, 3)
 
 
-def matching_threads(cfg: SfmConfig) -> int:
-    """Threads for COLMAP's matching: ``cfg.num_threads`` when set to more than one, else as
-    many as OpenCV may use (``cv2.getNumThreads()``, which ``volec batch`` workers limit).
-    Unlike extraction and mapping, matching repeats bit for bit on any number of threads once
-    the verification's RANSAC has a fixed seed (:func:`verification_options`): on the apple's
-    600 pairs, two runs on two threads gave the same inlier matches and geometries as one run
-    on one thread, and took 0.89 of its time. With COLMAP's default seed (-1) two 2-thread
-    runs differed (176,393 and 176,387 inliers)."""
-    import cv2
-
-    return cfg.num_threads if cfg.num_threads != 1 else max(1, cv2.getNumThreads())
-
-
 def verification_options(cfg: SfmConfig) -> Any:
     """COLMAP's two-view geometric verification options (``pycolmap.TwoViewGeometryOptions``)
-    with the RANSAC seeded by ``cfg.seed``, so each pair's inliers do not depend on which
-    thread verified it or when."""
+    with the RANSAC seeded by ``cfg.seed`` (COLMAP's default seeds from the clock), so a run
+    on one thread repeats."""
     import pycolmap
 
     options = pycolmap.TwoViewGeometryOptions()
@@ -535,7 +526,7 @@ def _run_sfm_in(capture: Capture, sfm_dir: Path, cfg: SfmConfig,
     pairs_file = sfm_dir / "pairs.txt"
     pairs_file.write_text("".join(f"{names[i]} {names[j]}\n" for i, j in pairs))
     pycolmap.match_image_pairs(
-        db, matching_options=pycolmap.FeatureMatchingOptions(num_threads=matching_threads(cfg)),
+        db, matching_options=pycolmap.FeatureMatchingOptions(num_threads=cfg.num_threads),
         pairing_options=pycolmap.ImportedPairingOptions(match_list_path=pairs_file),
         verification_options=verification_options(cfg), device=pycolmap.Device.cpu,
     )
