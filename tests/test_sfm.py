@@ -289,3 +289,23 @@ def test_sampson_distance_is_zero_on_the_epipolar_geometry_and_grows_off_it():
     # puts them about 0.01 / sqrt(2) off in the Sampson sense (split over the two views)
     off = sampson_distance(E, x1, x2 + [0.0, 0.01])
     assert 0.004 < np.median(off) < 0.011
+
+
+def test_matching_parts_give_the_same_poses_one_at_a_time_or_at_once(small_result, tmp_path):
+    # the pairs are matched in parts, each on one thread; how many parts run at once (OpenCV's
+    # thread count, which volec batch workers set to one) changes nothing
+    import cv2
+
+    result, reported = small_result
+    before = cv2.getNumThreads()
+    try:
+        cv2.setNumThreads(1)
+        one = run_sfm(reported, tmp_path / "one")
+        cv2.setNumThreads(2)
+        two = run_sfm(reported, tmp_path / "two")
+    finally:
+        cv2.setNumThreads(before)
+    for again in (one, two):
+        np.testing.assert_array_equal(again.T_world_from_cam, result.T_world_from_cam)
+        np.testing.assert_array_equal(again.points_xyz, result.points_xyz)
+    assert not list((tmp_path / "two").rglob("*.part*"))  # the parts' copies are gone

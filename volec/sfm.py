@@ -25,7 +25,7 @@ import json
 import logging
 import shutil
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -148,10 +148,15 @@ class SfmConfig:
     COLMAP's random generator is one per thread, so which pair draws which numbers likely
     follows the threads' timing. The 16-frame cake of the tests, matched on two threads,
     came out with 91 instead of 92 verified pairs in one run of six (camera centres 0.3 mm
-    apart); on one thread, ten runs gave the same poses bit for bit. That costs the 100-frame
-    banana alone on 2 cores 1.11 times its SfM time (matching 15.8 s against 12.1 s)."""
+    apart); on one thread, ten runs gave the same poses bit for bit. So the pairs are matched
+    in parts, each on one thread (``matching_parts``)."""
     seed: int = 0
     """Seed for COLMAP's and the alignment's RANSAC."""
+    matching_parts: int = 2
+    """The pairs are matched in this many parts, each on one thread into its own copy of the
+    database (:func:`match_pairs`), as many at once as OpenCV may use threads: the matches
+    do not depend on how many ran at once, so the same capture gives the same poses on any
+    machine, and on 2 cores matching takes about the time it took on two threads."""
 
 
 PRESETS: dict[str, SfmConfig] = {
@@ -327,6 +332,69 @@ def drift_model_alignment(
             rhs.append(0.0)
     x = np.linalg.lstsq(np.asarray(rows), np.asarray(rhs), rcond=None)[0]
     return float(x[0]), x[1:4], x[4:].reshape(n, 3)
+
+
+def match_pairs(db: Path, pairs: list[str], cfg: SfmConfig) -> None:
+    """COLMAP's matching and geometric verification of ``pairs`` (``"NAME_A NAME_B"``) into
+    the database ``db``. With ``cfg.num_threads`` 1, the pairs are dealt into
+    ``cfg.matching_parts`` parts, each matched on one thread into a copy of ``db``, in as many
+    processes at once as OpenCV may use threads (``volec batch`` workers: one, so one part
+    after the other), and their matches and geometries are then written into ``db`` part by
+    part. Matching on several threads did not repeat (once in six runs the tests' cake lost
+    a verified pair), nor did two one-thread matchings in one process (two runs in eight):
+    a part alone in its process draws its random numbers in a fixed order.
+
+    COLMAP has no option to match one list of pairs on several threads repeatably; hence the
+    parts and the merge here."""
+    import cv2
+    import pycolmap
+
+    parts = max(1, min(cfg.matching_parts, len(pairs))) if cfg.num_threads == 1 else 1
+    if parts == 1:
+        _match_part(db, pairs, cfg, cfg.num_threads)
+        return
+    copies = [db.with_name(f"{db.stem}.part{k}{db.suffix}") for k in range(parts)]
+    for copy in copies:
+        shutil.copyfile(db, copy)
+    try:
+        at_once = max(1, min(parts, cv2.getNumThreads()))
+        jobs = [(copies[k], pairs[k::parts], cfg, 1) for k in range(parts)]
+        if at_once == 1:
+            for job in jobs:
+                _match_part(*job)
+        else:  # processes: two matchings in one process disturb each other's random draws
+            import multiprocessing
+
+            with ProcessPoolExecutor(at_once, multiprocessing.get_context("fork")) as pool:
+                list(pool.map(_match_part, *zip(*jobs, strict=True)))
+        with pycolmap.Database.open(db) as database:
+            for copy in copies:
+                with pycolmap.Database.open(copy) as part:
+                    for pair_id, matches in zip(*part.read_all_matches(), strict=True):
+                        database.write_matches(*pycolmap.pair_id_to_image_pair(pair_id),
+                                               matches)
+                    for pair_id, geometry in zip(*part.read_two_view_geometries(), strict=True):
+                        database.write_two_view_geometry(
+                            *pycolmap.pair_id_to_image_pair(pair_id), geometry)
+    finally:
+        for copy in copies:
+            copy.unlink(missing_ok=True)
+
+
+def _match_part(db: Path, pairs: list[str], cfg: SfmConfig, threads: int) -> None:
+    """COLMAP's matching of ``pairs`` into ``db`` on ``threads`` threads."""
+    import pycolmap
+
+    pairs_file = db.with_suffix(".pairs.txt")
+    pairs_file.write_text("".join(f"{pair}\n" for pair in pairs))
+    try:
+        pycolmap.match_image_pairs(
+            db, matching_options=pycolmap.FeatureMatchingOptions(num_threads=threads),
+            pairing_options=pycolmap.ImportedPairingOptions(match_list_path=pairs_file),
+            verification_options=verification_options(cfg), device=pycolmap.Device.cpu,
+        )
+    finally:
+        pairs_file.unlink(missing_ok=True)
 
 
 def verification_options(cfg: SfmConfig) -> Any:
@@ -524,13 +592,8 @@ def _run_sfm_in(capture: Capture, sfm_dir: Path, cfg: SfmConfig,
     t = time.perf_counter()
     pairs = select_pairs(capture, cfg)
     log.info("SfM 2/4: matching %d image pairs (%s)", len(pairs), cfg.pairing)
-    pairs_file = sfm_dir / "pairs.txt"
-    pairs_file.write_text("".join(f"{names[i]} {names[j]}\n" for i, j in pairs))
-    pycolmap.match_image_pairs(
-        db, matching_options=pycolmap.FeatureMatchingOptions(num_threads=cfg.num_threads),
-        pairing_options=pycolmap.ImportedPairingOptions(match_list_path=pairs_file),
-        verification_options=verification_options(cfg), device=pycolmap.Device.cpu,
-    )
+    (sfm_dir / "pairs.txt").write_text("".join(f"{names[i]} {names[j]}\n" for i, j in pairs))
+    match_pairs(db, [f"{names[i]} {names[j]}" for i, j in pairs], cfg)
     timings["match_s"] = time.perf_counter() - t
 
     t = time.perf_counter()
