@@ -13,6 +13,7 @@ from volec.errors import ConfigError
 from volec.experiments import (
     DEFAULT_METHOD,
     METHODS,
+    Scenario,
     cached_row,
     frame_subset,
     map_items,
@@ -243,3 +244,36 @@ def test_a_capture_renders_with_no_more_processes_than_its_worker_may_use_thread
     assert scenario.synth.workers == 2
     experiments.ensure_capture(tmp_path, "apple", scenario)
     assert used == [expected]
+
+
+def test_a_capture_rendered_again_as_the_same_bytes_keeps_its_stages(quick_capture, tmp_path,
+                                                                      monkeypatch):
+    # generator code changed (as any edit to a module the renderer imports does), its output
+    # not: the capture is rendered again, found the same, and its work folder stays; where
+    # the new rendering differs, it replaces the folder and the work folder goes with it
+    import shutil
+
+    import volec.experiments as experiments
+    import volec.synth.generate as generate
+
+    scenario = Scenario("quick", generate.PRESETS["quick"])
+    out = scenario.folder(tmp_path, "apple")
+    shutil.copytree(quick_capture, out)
+    (out / "work").mkdir()
+    (out / "work" / "stage.json").write_text("{}")
+    monkeypatch.setattr(generate, "synth_code",
+                        lambda: {"volec_version": "0.1.0", "source_digest": "other"})
+    assert not generate.is_current(out, scenario.synth)
+    experiments.ensure_capture(tmp_path, "apple", scenario)
+    assert (out / "work" / "stage.json").exists()
+    assert generate.is_current(out, scenario.synth)
+
+    image = sorted((out / "capture" / "images").iterdir())[0]
+    image.write_bytes(b"not what the renderer wrote")
+    monkeypatch.setattr(generate, "synth_code",
+                        lambda: {"volec_version": "0.1.0", "source_digest": "third"})
+    experiments.ensure_capture(tmp_path, "apple", scenario)
+    assert not (out / "work").exists()
+    assert image.read_bytes() == (quick_capture / image.relative_to(out)).read_bytes()
+    assert generate.is_current(out, scenario.synth)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [out.name]  # no scratch left
