@@ -616,6 +616,20 @@ def test_prior_points_that_leave_the_masks_uncovered_are_dropped():
     assert volume_ml(checked.mesh) == pytest.approx(sphere_ml, rel=0.04)
 
 
+def _pulled_sphere(r: float = 0.03):
+    """The sphere on the table (:func:`_sphere_on_table`) seen above a third of its height,
+    with a shape prior's points that put its lower part at 0.7 of the radius (a completion
+    that pulled the unseen side in): centre, table, views, the observed cloud and the cloud
+    with the prior's points after it."""
+    centre, d, table, views = _sphere_on_table(r)
+    seen = d[:, 2] > -1 / 3
+    prior = centre + 0.7 * r * d[~seen][:4000]
+    observed = PointCloud(centre + r * d[seen], None, d[seen])
+    cloud = PointCloud(np.vstack([observed.xyz, prior]), None,
+                       np.vstack([d[seen], np.full(prior.shape, np.nan)]))
+    return centre, table, views, observed, cloud
+
+
 def test_prior_points_that_cut_into_enclosed_space_are_dropped():
     # The sphere of the masks' test, its lower part pulled to 0.7 of the radius by a prior's
     # points, with the masks' check off: the space the seen surface encloses (here the
@@ -624,12 +638,7 @@ def test_prior_points_that_cut_into_enclosed_space_are_dropped():
     from volec.meshing import FoodCoverConfig, missed_points, near_points
 
     r = 0.03
-    centre, d, table, views = _sphere_on_table(r)
-    seen = d[:, 2] > -1 / 3
-    prior = centre + 0.7 * r * d[~seen][:4000]
-    observed = PointCloud(centre + r * d[seen], None, d[seen])
-    cloud = PointCloud(np.vstack([observed.xyz, prior]), None,
-                       np.vstack([d[seen], np.full(prior.shape, np.nan)]))
+    centre, table, views, observed, cloud = _pulled_sphere(r)
     axis = np.arange(-0.95 * r, 0.95 * r, 0.002)
     grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
     enclosed = centre + grid[np.linalg.norm(grid, axis=1) < 0.95 * r]
@@ -662,12 +671,7 @@ def test_enclosed_space_at_the_contact_with_the_support_does_not_count():
     from volec.meshing import FoodCoverConfig
 
     r = 0.03
-    centre, d, table, views = _sphere_on_table(r)
-    seen = d[:, 2] > -1 / 3
-    prior = centre + 0.7 * r * d[~seen][:4000]
-    observed = PointCloud(centre + r * d[seen], None, d[seen])
-    cloud = PointCloud(np.vstack([observed.xyz, prior]), None,
-                       np.vstack([d[seen], np.full(prior.shape, np.nan)]))
+    centre, table, views, observed, cloud = _pulled_sphere(r)
     axis = np.arange(-r, r, 0.001)
     grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
     contact = centre + grid[np.linalg.norm(grid, axis=1) < r]

@@ -429,17 +429,19 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     if completion is not None:
         cloud = completion.cloud
         summary = {"method": completion_method_used(completion, cfg), **completion.summary}
-    enclosed = None  # the space the seen surface encloses, for the meshing's check
-    if space is not None and cfg.meshing.food_cover.rounds:
-        enclosed = space.points_in(FOOD)
+    def meshed() -> MeshResult:
+        enclosed = None  # the space the seen surface encloses, for the meshing's check
+        if space is not None and cfg.meshing.food_cover.rounds:
+            enclosed = space.points_in(FOOD)
+        return mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked, prior, enclosed)
+
     if meshes is None:
-        mesh = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked, prior, enclosed)
+        mesh = meshed()
     else:  # the same cloud carved by the same views (and the same space: one basis)
         key = cloud_digest(cloud) + views_digest([*(silhouettes or []),
                                                   *(prior.views if prior else ())])
         if key not in meshes:
-            meshes[key] = mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked, prior,
-                                     enclosed)
+            meshes[key] = meshed()
         mesh = meshes[key]
     if len(mesh.dropped):  # the prior's points that the meshing's checks dropped
         cloud = cloud.subset(~np.isin(np.arange(len(cloud)), mesh.dropped))

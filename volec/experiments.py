@@ -193,13 +193,13 @@ TRUTH_FILE = Path("ground_truth") / "truth.json"
 """A finished synthetic capture's record (written last)."""
 
 
-def rerender(item: str, out: Path, synth: SynthConfig) -> bool:
+def rerender(item: str, out: Path, synth: SynthConfig) -> None:
     """Render ``item`` by ``synth`` again into a sibling of the finished capture ``out``. When
     every file of its capture and ground truth is the same bytes as in ``out`` (the truth
     record apart from the generator code's identity), ``out`` and its work folders are kept
-    and only that record is replaced (True); otherwise the new rendering replaces ``out``
-    (False). A change to code the renderer imports but that leaves its output alone (such as
-    b9eba51's, in volec/capture.py) then costs the renders, not every stage made from them."""
+    and only that record is replaced; otherwise the new rendering replaces ``out``. A change
+    to code the renderer imports but that leaves its output alone (such as b9eba51's, in
+    volec/capture.py) then costs the renders, not every stage made from them."""
     import os
     import shutil
     import tempfile
@@ -209,10 +209,9 @@ def rerender(item: str, out: Path, synth: SynthConfig) -> bool:
         fresh = write_synthetic_capture(item, scratch / out.name, synth, progress=False)
         if same_rendering(out, fresh):
             write_bytes_atomic(out / TRUTH_FILE, (fresh / TRUTH_FILE).read_bytes())
-            return True
+            return
         os.replace(out, scratch / "replaced")
         os.replace(fresh, out)
-        return False
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
 
