@@ -5,7 +5,8 @@ an :class:`EstimateConfig`. Out, in the output folder (which is also the work fo
 re-run reuses the finished SfM, dense and masking stages, and a finished estimate):
 
 - ``scene.ply``, ``food_masked.ply`` (and ``sfm/``, ``dense.json``, ``masking.json``);
-- ``food_completed.ply``: the masked cloud plus the network's points (magenta), with completion;
+- ``food_completed.ply``: the masked cloud, the rim points (cyan) and the network's points
+  (magenta), with completion;
 - ``mesh.ply`` and ``mesh.glb``: the closed food mesh (metres, the capture's world frame);
 - ``report.html``: one self-contained page (:mod:`volec.report`): the volume, its trust flag
   and reasons, the frames with the masks' outlines, the clouds and the mesh in a 3D viewer, the
@@ -92,6 +93,7 @@ from volec.pointcloud import PointCloud, write_ply
 from volec.progress import step
 from volec.provenance import capture_identity, file_digest, json_data, stage_provenance
 from volec.report import ReportScene, bounds_sentence, write_report_html
+from volec.rims import RimConfig, rim_points
 from volec.scale import ScaleCheck, ScaleConfig, require_metric
 from volec.segment import MaskSet, SegmentConfig, given_masks
 from volec.sfm import SfmConfig
@@ -166,6 +168,9 @@ class EstimateConfig:
     space: SpaceConfig = field(default_factory=SpaceConfig)
     """How the space around the food is sorted into empty, food and unknown for the volume
     bounds (:mod:`volec.space`)."""
+    rims: RimConfig = field(default_factory=RimConfig)
+    """Where the food masks' outlines place the surface under the item's widest level, mesh
+    with those points too (:mod:`volec.rims`; only with carving silhouettes)."""
 
 
 PRESETS: dict[str, EstimateConfig] = {
@@ -193,7 +198,8 @@ class FoodMesh:
     """The food's closed mesh and what went into it."""
 
     cloud: PointCloud
-    """The cloud that was meshed (masked, plus predicted points with completion)."""
+    """The cloud that was meshed: the masked cloud, the rim points (:mod:`volec.rims`), then
+    a prior's points with completion."""
     mesh: MeshResult
     volume_ml: float
     support: SupportPlane | None
@@ -207,6 +213,9 @@ class FoodMesh:
     """Wall time of ``completion_s`` (0 without) and ``meshing_s`` (support plane included)."""
     completion_problem: str | None = None
     """Why completion was asked for but skipped (None when it ran or was off)."""
+    observed_points: int = 0
+    """How many of ``cloud``'s first points were measured (the masked cloud and the rim
+    points); the rest are a prior's."""
 
 
 @dataclass(frozen=True)
@@ -231,6 +240,8 @@ class Estimate:
     mirror_views: dict[str, Any] | None = None
     """The mirror plane the carving's reflected views came from and how many carved (None:
     no reflected views were asked for)."""
+    rims: dict[str, Any] | None = None
+    """How the rim points were found (:func:`volec.rims.rim_points`; None: none were)."""
 
     @property
     def trusted(self) -> bool:
@@ -410,14 +421,16 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
               silhouettes: list[SilhouetteView] | None = None,
               space: SpaceGrid | None = None,
               meshes: dict[str, MeshResult] | None = None,
-              prior: PriorViews | None = None) -> FoodMesh:
+              prior: PriorViews | None = None, rims: PointCloud | None = None) -> FoodMesh:
     """Completion (see :func:`completed_cloud`) and a closed mesh of the food on the
     ``support`` plane (:func:`find_support`), carved by ``silhouettes`` when given, with its
     volume. With ``meshes`` (those already made with the same masked cloud, plane,
     silhouettes and meshing settings, by :func:`cloud_digest`), a cloud meshed before is not
     meshed again: two completion methods often give the same cloud (the default is the
     network alone where the half-turn does not apply, mirror or rotation may add nothing).
-    ``prior`` views (:func:`mirror_prior`) carve too, where they may."""
+    ``prior`` views (:func:`mirror_prior`) carve too, where they may. ``rims``
+    (:func:`volec.rims.rim_points`) are meshed as measured surface, after the masked points
+    (completion does not see them)."""
     start = time.perf_counter()
     plane, problem = support
     cloud, summary = masked, None
@@ -429,11 +442,15 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     if completion is not None:
         cloud = completion.cloud
         summary = {"method": completion_method_used(completion, cfg), **completion.summary}
+    observed = masked
+    if rims is not None and len(rims):
+        observed, cloud = with_rims(masked, cloud, rims)
+
     def meshed() -> MeshResult:
         enclosed = None  # the space the seen surface encloses, for the meshing's check
         if space is not None and cfg.meshing.food_cover.rounds:
             enclosed = space.points_in(FOOD)
-        return mesh_cloud(cloud, plane, cfg.meshing, silhouettes, masked, prior, enclosed)
+        return mesh_cloud(cloud, plane, cfg.meshing, silhouettes, observed, prior, enclosed)
 
     if meshes is None:
         mesh = meshed()
@@ -452,11 +469,22 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     volume = volume_ml(mesh.mesh)
     share = None
     if completion is not None:
-        share = completion_share(mesh.mesh, cloud, len(masked), cfg.completion_share_pitch_m)
+        share = completion_share(mesh.mesh, cloud, len(observed), cfg.completion_share_pitch_m)
     meshing_s = time.perf_counter() - start - completion_s
     return FoodMesh(cloud, mesh, volume, plane, problem, summary, share,
                     {"completion_s": round(completion_s, 2), "meshing_s": round(meshing_s, 2)},
-                    skipped)
+                    skipped, len(observed))
+
+
+def with_rims(masked: PointCloud, cloud: PointCloud, rims: PointCloud
+              ) -> tuple[PointCloud, PointCloud]:
+    """The observed points (``masked``, then the ``rims``) and the cloud to mesh: ``cloud``
+    (``masked``, or ``masked`` then a prior's points) with the rims after the masked points,
+    so that the meshing counts them as measured, not as a prior's to drop."""
+    observed = masked.joined(rims)
+    if len(cloud) < len(masked) or not np.array_equal(cloud.xyz[:len(masked)], masked.xyz):
+        return observed, cloud.joined(rims)  # a completion that dropped the partial
+    return observed, observed.joined(cloud.subset(np.arange(len(masked), len(cloud))))
 
 
 def views_digest(views: list[SilhouetteView] | None) -> str:
@@ -555,13 +583,18 @@ class EstimateBasis:
     """The space around the food (:func:`stage_space`)."""
     space_s: float
     """Wall time of the space, seconds."""
-    settings: tuple[MeshingConfig, SupportConfig, SpaceConfig, MirrorViewsConfig]
+    settings: tuple[MeshingConfig, SupportConfig, SpaceConfig, MirrorViewsConfig, RimConfig]
     """The settings it was made with; an estimate with other ones is refused."""
     mirrored: tuple[SilhouetteView, ...] = ()
     """The views reflected in the food's vertical mirror plane that may carve
     (:func:`mirror_carving_views`; none when the food is not symmetric or they are off)."""
     mirror_fit: VerticalMirrorFit | None = None
     """That plane's fit (None when reflected views are off or there is no up direction)."""
+    rims: PointCloud | None = None
+    """The points the masks' outlines place (:func:`volec.rims.rim_points`; None when off or
+    without silhouettes or an up direction)."""
+    rims_record: dict[str, Any] | None = None
+    """How they were found (rays, points placed and kept, seconds)."""
     meshes: dict[str, MeshResult] = field(default_factory=dict)
     """The meshes made on it so far, by the digest of the cloud each was made from
     (:func:`food_mesh`): a method whose completed cloud another method already meshed takes
@@ -584,9 +617,15 @@ def estimate_basis(capture: Capture, stages: StageResults, cfg: EstimateConfig,
     space_s = time.perf_counter() - start
     up = support[0].normal if support[0] is not None else capture_up(capture)
     mirrored, fit = mirror_carving_views(stages.masked.cloud, silhouettes, up, space, cfg)
+    rims, rims_record = None, None
+    if cfg.rims.enabled and silhouettes and up is not None:
+        rims, rims_record = rim_points(silhouettes, stages.masked.cloud, space, up, cfg.rims,
+                                       (cfg.meshing.silhouette_margin_px,
+                                        cfg.meshing.silhouette_min_views), support[0])
     return EstimateBasis(silhouettes, tuple(left_out), support, space, space_s,
-                         (cfg.meshing, cfg.support, cfg.space, cfg.mirror_views),
-                         mirrored=tuple(mirrored), mirror_fit=fit)
+                         (cfg.meshing, cfg.support, cfg.space, cfg.mirror_views, cfg.rims),
+                         mirrored=tuple(mirrored), mirror_fit=fit, rims=rims,
+                         rims_record=rims_record)
 
 
 def mirror_carving_views(masked: PointCloud, silhouettes: list[SilhouetteView] | None,
@@ -646,8 +685,8 @@ def estimate_from_basis(capture: Capture, stages: StageResults, model: SymmCompl
     """:func:`estimate_from_stages` on a ``basis`` already made from the same stage results
     with the same meshing, support and space settings as ``cfg``'s (another is a
     :class:`ConfigError`): completion, the mesh, its volume, bounds and trust."""
-    if basis.settings != (cfg.meshing, cfg.support, cfg.space, cfg.mirror_views):
-        raise ConfigError("the estimate's meshing, support or space settings differ from "
+    if basis.settings != (cfg.meshing, cfg.support, cfg.space, cfg.mirror_views, cfg.rims):
+        raise ConfigError("the estimate's meshing, support, space or rim settings differ from "
                           "those its basis was made with")
     up = capture_up(capture)
     silhouettes, left_out, support, space = (basis.silhouettes, basis.left_out, basis.support,
@@ -659,7 +698,7 @@ def estimate_from_basis(capture: Capture, stages: StageResults, model: SymmCompl
                          "spare_seen_food": cfg.mirror_views.spare_seen_food}
     prior = mirror_prior(basis, cfg) if mirror_record is not None else None
     food = food_mesh(stages.masked.cloud, support, up, model, cfg, silhouettes, space,
-                     basis.meshes, prior)
+                     basis.meshes, prior, basis.rims)
     view_up = (np.asarray(food.support.normal) if food.support is not None
                else up if up is not None else np.array([0.0, 0.0, 1.0]))
     sfm = stages.sfm
@@ -688,7 +727,7 @@ def estimate_from_basis(capture: Capture, stages: StageResults, model: SymmCompl
         warnings.append(f"{len(left_out)} masks left out part of the food and did not carve "
                         f"the mesh: {', '.join(v.name for v in left_out)}")
     return Estimate(food, reasons, warnings, coverage, view_up, bounds, bounds_s,
-                    tuple(v.name for v in left_out), mirror_record)
+                    tuple(v.name for v in left_out), mirror_record, basis.rims_record)
 
 
 def report_pictures(result: FoodMesh, up: np.ndarray, folder: Path, masked: PointCloud
@@ -725,11 +764,12 @@ def masks_picture(capture: Capture, masks: MaskSet, folder: Path, frames: int = 
 
 
 def report_scene(est: Estimate, stages: StageResults) -> ReportScene:
-    """What the report's 3D view shows: the mesh, the masked cloud and the network's points
-    (those the completion added after the masked ones)."""
-    observed = len(stages.masked.cloud)
-    return ReportScene(est.food.mesh.mesh, stages.masked.cloud, est.food.cloud.xyz[observed:],
-                       est.view_up)
+    """What the report's 3D view shows: the mesh, the measured points (the masked cloud in
+    its colours and the rim points) and the network's points (those the completion added
+    after them)."""
+    observed = est.food.observed_points or len(stages.masked.cloud)
+    return ReportScene(est.food.mesh.mesh, est.food.cloud.subset(np.arange(observed)),
+                       est.food.cloud.xyz[observed:], est.view_up)
 
 
 def report_markdown(result: dict[str, Any], pictures: dict[str, Path], out_dir: Path) -> str:
@@ -803,6 +843,7 @@ def estimate_record(capture: Capture, stages: StageResults, est: Estimate, cfg: 
         "completion": food.completion_summary,
         "completion_share": food.completion_share,
         "mirror_views": est.mirror_views,
+        "rims": est.rims,
         "capture": str(capture.root),
         "checkpoint": (str(checkpoint_path(cfg)) if food.completion_summary is not None
                        and "network" in food.completion_summary["method"] else None),

@@ -1360,14 +1360,16 @@ def qualitative_panels(root: Path, item: str, scenario: Scenario) -> dict[str, A
     import trimesh
 
     from volec.masking import load_masking
-    from volec.pointcloud import read_ply
+    from volec.pointcloud import PREDICTED_RGB, read_ply
     from volec.viz import Highlighted
 
     out = ensure_capture(root, item, scenario)
     work = scenario.work(out)
     masked = load_masking(work).cloud
-    completed = read_ply(work / "food_completed.ply")  # the masked points, then the network's
+    completed = read_ply(work / "food_completed.ply")  # masked, rim, then the prior's points
+    predicted = (completed.xyz[len(masked):] if completed.rgb is None else
+                 completed.xyz[np.all(completed.rgb == PREDICTED_RGB, axis=1)])
     return {"masked cloud": masked,
-            "completed cloud": Highlighted(masked, completed.xyz[len(masked):]),
+            "completed cloud": Highlighted(masked, predicted),
             "mesh (completion)": trimesh.load(work / "mesh_completion.ply"),
             "true surface": load_ground_truth_mesh(out)}

@@ -22,6 +22,8 @@ PREDICTED_RGB = (214, 36, 110)
 food has, in ``food_completed.ply``, the pictures and the report."""
 PREDICTED_COLOUR = "#{:02x}{:02x}{:02x}".format(*PREDICTED_RGB)
 """:data:`PREDICTED_RGB` as a hex colour, for matplotlib, pyvista and the report's page."""
+RIM_RGB = (40, 170, 200)
+"""The colour of the points the food masks' outlines placed (:mod:`volec.rims`): a cyan."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,6 +51,15 @@ class PointCloud:
 
     def __len__(self) -> int:
         return len(self.xyz)
+
+    def joined(self, other: PointCloud) -> PointCloud:
+        """This cloud's points followed by ``other``'s; colours and normals only where both
+        have them."""
+        def both(a: np.ndarray | None, b: np.ndarray | None) -> np.ndarray | None:
+            return None if a is None or b is None else np.concatenate([a, b])
+
+        return PointCloud(np.concatenate([self.xyz, other.xyz]), both(self.rgb, other.rgb),
+                          both(self.normals, other.normals))
 
     def subset(self, keep: np.ndarray) -> PointCloud:
         """The points selected by a boolean mask or an index array."""

@@ -60,7 +60,8 @@ class ReportScene:
 
     mesh: trimesh.Trimesh
     observed: PointCloud
-    """The masked food cloud."""
+    """The measured points: the masked food cloud, then the rim points the masks' outlines
+    placed (:mod:`volec.rims`, cyan)."""
     predicted_xyz: np.ndarray
     """(M, 3) the completion network's points ((0, 3) without completion)."""
     up: np.ndarray
@@ -186,7 +187,8 @@ def _list_html(items: list[str]) -> str:
 
 
 def _layer_boxes(data: dict[str, Any]) -> str:
-    labels = {"observed": "observed points (their colours)",
+    labels = {"observed": "observed points (their colours; cyan: placed by the masks' "
+                          "outlines)",
               "predicted": f'<span style="color:{PREDICTED_COLOUR}">&#9679;</span> '
                            "the completion network's points"}
     boxes = ['<label><input type="checkbox" data-layer="mesh" checked> mesh</label>',

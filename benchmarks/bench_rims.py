@@ -1,0 +1,102 @@
+"""The default estimate with and without the rim points (where the food masks' outlines place
+the surface under an item's widest level, :mod:`volec.rims`).
+
+Usage: .venv/bin/python benchmarks/bench_rims.py [--scenarios full_orbit half_orbit ...]
+       [--items apple orange ...] [--workers 2] [--set section.field=value ...]
+
+On the stages of the volume benchmark (data/bench-sfm/ITEM-SCENARIO/work, reused when the
+notebooks or ``bench_volume.py`` made them with the current code, else recomputed), the default
+estimate is made twice on one basis, with the rim points and without (the same support plane,
+space and views). Per item: both volume errors against the ground truth (read only to score),
+how many rim points were placed and kept, the median stretch along which a ray ran inside the
+hull, the seconds they took, and where they lie against the true surface (signed distance,
+median and p10/p90, after the masked cloud's own rigid alignment to the truth, which leaves
+the capture's scale error in); per scenario both MAPEs and a paired t-test of the absolute
+errors. Written to figures/rims_SCENARIO.{csv,md}.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from scipy.stats import ttest_rel
+
+from volec.experiments import benchmark_stages, map_items, scenarios
+from volec.paths import experiment_dir, figures_dir
+from volec.synth import item_names
+from volec.tables import write_table
+
+
+def rims_row(item: str, scenario_name: str, settings: tuple[str, ...] = ()) -> dict[str, Any]:
+    """One item: the default's volume error with the rim points and without, and where the
+    rim points lie against the true surface."""
+    from volec.estimate import (
+        EstimateConfig,
+        estimate_basis,
+        estimate_from_basis,
+        food_silhouettes,
+        load_completion_model,
+        with_setting,
+    )
+    from volec.metrics import rigid_alignment, signed_distances_to_surface
+    from volec.synth import load_ground_truth_mesh
+
+    cfg = EstimateConfig()
+    for setting in settings:
+        cfg = with_setting(cfg, setting)
+    bench = benchmark_stages(item, scenario_name, cfg)
+    capture, stages = bench.capture, bench.stages
+    model = load_completion_model(cfg)
+    silhouettes = food_silhouettes(capture, stages, cfg)
+    basis = estimate_basis(capture, stages, cfg, silhouettes)
+    with_rims = estimate_from_basis(capture, stages, model, cfg, basis)
+    off = replace(cfg, rims=replace(cfg.rims, enabled=False))
+    without = estimate_from_basis(capture, stages, model, off,
+                                  replace(basis, rims=None, rims_record=None, meshes={},
+                                          settings=(*basis.settings[:4], off.rims)))
+    record = basis.rims_record or {}
+    row = {"item": item, "scenario": scenario_name, "gt_ml": bench.truth_ml,
+           "without_rims_err_pct": 100 * (without.food.volume_ml / bench.truth_ml - 1),
+           "default_err_pct": 100 * (with_rims.food.volume_ml / bench.truth_ml - 1),
+           "rays": record.get("rays", 0), "placed": record.get("placed", 0),
+           "kept": record.get("kept", 0), "median_stretch_mm": record.get("median_stretch_mm"),
+           "rims_s": record.get("seconds")}
+    if basis.rims is not None and len(basis.rims):
+        truth = load_ground_truth_mesh(scenarios(False)[scenario_name].folder(
+            experiment_dir(False), item))
+        T = rigid_alignment(stages.masked.cloud.xyz[::5], truth)
+        placed = basis.rims.xyz @ T[:3, :3].T + T[:3, 3]
+        signed_mm = signed_distances_to_surface(placed, truth) * 1000
+        row.update({f"rims_signed_{name}_mm": float(np.percentile(signed_mm, q))
+                    for name, q in (("p10", 10), ("median", 50), ("p90", 90))})
+    return row
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenarios", nargs="+", default=["full_orbit"])
+    parser.add_argument("--items", nargs="+", default=item_names())
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
+                        help="change a setting of the default, e.g. rims.max_contact_m=0.012")
+    args = parser.parse_args()
+    for name in args.scenarios:
+        jobs = [(item, name, tuple(args.set)) for item in args.items]
+        raw = pd.DataFrame(map_items(rims_row, jobs, [f"{i} {name}" for i, _, _ in jobs],
+                                     args.workers, progress=True))
+        write_table(raw, figures_dir() / f"rims_{name}", float_digits=2)
+        before, after = raw["without_rims_err_pct"].abs(), raw["default_err_pct"].abs()
+        p = ttest_rel(after, before).pvalue if len(raw) > 1 and (after != before).any() else None
+        signed = raw["without_rims_err_pct"].mean(), raw["default_err_pct"].mean()
+        print(f"{name}: {len(raw)} items, MAPE without rims {before.mean():.2f} %, with them "
+              f"(default) {after.mean():.2f} % (paired p {p}); mean signed error "
+              f"{signed[0]:+.2f} -> {signed[1]:+.2f} %")
+        print(raw.drop(columns=["scenario", "gt_ml"]).round(2).to_string(index=False))
+
+
+if __name__ == "__main__":
+    main()
