@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from volec.dense import run_dense
-from volec.estimate import EstimateConfig, with_setting
+from volec.estimate import EstimateConfig, with_settings
 from volec.experiments import map_items, scenario_capture, scenarios
 from volec.masking import mask_cloud
 from volec.metrics import cloud_scores, rigid_alignment, signed_distances_to_surface
@@ -49,9 +49,7 @@ def coverage_rows(item: str, scenario_name: str, settings: tuple[str, ...]
     base = EstimateConfig()
     sfm, _ = run_sfm_stage(capture, scenario.work(out), base.sfm, stale="recompute")
     masks = given_masks(capture)
-    changed = base
-    for setting in settings:
-        changed = with_setting(changed, setting)
+    changed = with_settings(base, settings)
     rows = []
     configs = [("default", base)] + ([(" ".join(settings), changed)] if settings else [])
     for name, cfg in configs:

@@ -42,12 +42,10 @@ def cover_row(item: str, scenario_name: str, settings: tuple[str, ...] = ()
         estimate_from_stages,
         food_silhouettes,
         load_completion_model,
-        with_setting,
+        with_settings,
     )
 
-    cfg = EstimateConfig()
-    for setting in settings:
-        cfg = with_setting(cfg, setting)
+    cfg = with_settings(EstimateConfig(), settings)
     bench = benchmark_stages(item, scenario_name, cfg)
     capture, stages, truth_ml = bench.capture, bench.stages, bench.truth_ml
     est = estimate_from_stages(capture, stages, load_completion_model(cfg), cfg,

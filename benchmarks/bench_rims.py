@@ -40,14 +40,12 @@ def rims_row(item: str, scenario_name: str, settings: tuple[str, ...] = ()) -> d
         estimate_from_basis,
         food_silhouettes,
         load_completion_model,
-        with_setting,
+        with_settings,
     )
     from volec.metrics import rigid_alignment, signed_distances_to_surface
     from volec.synth import load_ground_truth_mesh
 
-    cfg = EstimateConfig()
-    for setting in settings:
-        cfg = with_setting(cfg, setting)
+    cfg = with_settings(EstimateConfig(), settings)
     bench = benchmark_stages(item, scenario_name, cfg)
     capture, stages = bench.capture, bench.stages
     model = load_completion_model(cfg)

@@ -260,6 +260,13 @@ def with_setting(cfg: EstimateConfig, setting: str) -> EstimateConfig:
     return _with_field(cfg, names, text.strip(), setting)
 
 
+def with_settings(cfg: EstimateConfig, settings: tuple[str, ...] | list[str]) -> EstimateConfig:
+    """``cfg`` with each of ``settings`` applied in turn (:func:`with_setting`)."""
+    for setting in settings:
+        cfg = with_setting(cfg, setting)
+    return cfg
+
+
 def _with_field(obj: Any, names: list[str], text: str, setting: str) -> Any:
     """``obj`` (a frozen dataclass) with the field at ``names`` set to ``text``, typed."""
     names_here = {f.name for f in fields(obj)}
