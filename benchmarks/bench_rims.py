@@ -55,7 +55,7 @@ def rims_row(item: str, scenario_name: str, settings: tuple[str, ...] = ()) -> d
     off = replace(cfg, rims=replace(cfg.rims, enabled=False))
     without = estimate_from_basis(capture, stages, model, off,
                                   replace(basis, rims=None, rims_record=None, meshes={},
-                                          settings=(*basis.settings[:4], off.rims)))
+                                          settings=(*basis.settings[:-1], off.rims)))
     record = basis.rims_record or {}
     row = {"item": item, "scenario": scenario_name, "gt_ml": bench.truth_ml,
            "without_rims_err_pct": 100 * (without.food.volume_ml / bench.truth_ml - 1),

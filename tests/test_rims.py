@@ -91,15 +91,22 @@ def test_rim_points_bring_the_carved_mesh_nearer_the_sphere_s_volume():
     assert -0.3 < error < 0.9 * (hull_only - truth)
 
 
-def test_no_outline_faces_down_when_only_the_top_is_in_the_mask():
-    # a mask whose outline is a horizontal line across the image's top half and the image
-    # border: no tangent plane below the camera's level faces down
-    _, _, _, views = _sphere_on_table(0.03)
-    view = views[0]
-    from volec.meshing import silhouette_view
-
-    mask = np.zeros(view.signed_distance_px.shape, bool)
-    mask[:60] = True
-    flat = silhouette_view(mask, view.intrinsics, np.linalg.inv(view.T_cam_from_world))
-    origins, _, normals = outline_rays(flat, UP, RimConfig())
-    assert len(origins) == 0 or np.all(normals @ UP < RimConfig().max_up)
+def test_only_the_outline_under_the_sphere_s_widest_level_is_followed():
+    # each outline ray touches the sphere where the sphere's normal is the tangent plane's:
+    # at centre + r n. The rays kept pass the sphere below its widest level, and they are
+    # part of the outline, not all of it
+    r = 0.03
+    centre, _, _, views = _sphere_on_table(r)
+    cfg = RimConfig()
+    for view in views[:4]:
+        every, _, _ = outline_rays(view, UP, RimConfig(max_up=1.0))
+        origins, directions, normals = outline_rays(view, UP, cfg)
+        assert 0 < len(origins) < 0.7 * len(every)
+        touch = centre + r * normals
+        along = np.einsum("ij,ij->i", touch - origins, directions)
+        off_ray = np.linalg.norm(touch - origins - along[:, None] * directions, axis=1)
+        # the normal is known to a few degrees (a binary mask's outline bends pixel by
+        # pixel), and r times that is millimetres along the sphere
+        assert np.median(off_ray) < 0.003
+        # below the widest level: the ray itself passes the sphere under its centre
+        assert np.median((origins + along[:, None] * directions - centre) @ UP) < -0.005

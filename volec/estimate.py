@@ -770,11 +770,11 @@ def masks_picture(capture: Capture, masks: MaskSet, folder: Path, frames: int = 
     return save_figure(fig, folder / "masks.png")
 
 
-def report_scene(est: Estimate, stages: StageResults) -> ReportScene:
+def report_scene(est: Estimate) -> ReportScene:
     """What the report's 3D view shows: the mesh, the measured points (the masked cloud in
     its colours and the rim points) and the network's points (those the completion added
     after them)."""
-    observed = est.food.observed_points or len(stages.masked.cloud)
+    observed = est.food.observed_points
     return ReportScene(est.food.mesh.mesh, est.food.cloud.subset(np.arange(observed)),
                        est.food.cloud.xyz[observed:], est.view_up)
 
@@ -949,7 +949,7 @@ def run_estimate(capture: Capture, out_dir: Path, cfg: EstimateConfig | None = N
         pictures = {k.removeprefix("picture_"): out_dir / v for k, v in files.items()
                     if k.startswith("picture_")}
         write_text_atomic(out_dir / "report.md", report_markdown(record, pictures, out_dir))
-        write_report_html(out_dir / "report.html", record, report_scene(est, stages),
+        write_report_html(out_dir / "report.html", record, report_scene(est),
                           {name: path.read_bytes() for name, path in pictures.items()})
         record["provenance"] = wanted
         record["files"] = {name: file_digest(out_dir / name) for name in files.values()}

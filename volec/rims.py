@@ -17,9 +17,10 @@ out between such touching points. The points are kept only where the tangent pla
 (the band under an item's widest level: cameras above the plate see it only at grazing
 angles, which dense stereo drops) and where stereo left no point near.
 
-On the benchmark's full-orbit lemon (SfM poses, exact masks) the points lay a median 0.22 mm
-outside the true surface (p10 0.09, p90 0.46 mm, part of it the capture's 0.4 % scale
-error); see the README's Meshing section for what they do to the volumes.
+On the benchmark's full-orbit lemon (SfM poses, exact masks) the points lay a median 0.23 mm
+outside the true surface (p10 0.10, p90 0.45 mm, part of it the capture's 0.4 % scale
+error; ``benchmarks/bench_rims.py``); the README's "Rim points" paragraph (Completion) says
+what they do to the volumes.
 
 The visual hull itself (:func:`volec.meshing.silhouette_field`) is volec's; no library
 reconstructs surfaces from the tangency of outlines (the "rim" or "contour generator"
@@ -230,9 +231,9 @@ def rim_points(views: list[SilhouetteView], observed: PointCloud, space: SpaceGr
     the carving's margin (pixels) and the views that must agree, as the meshing carves; a
     ray's stretch ends at the ``support`` plane."""
     start = time.perf_counter()
-    rays = [outline_rays(view, up, cfg) for view in views]
-    origins, directions, normals = (np.vstack([r[k] for r in rays]) if rays else np.zeros((0, 3))
-                                    for k in range(3))
+    origins, directions, normals = (np.vstack(parts) for parts in
+                                    zip(*[outline_rays(view, up, cfg) for view in views],
+                                        strict=True))
     middle, length = contact_midpoints(origins, directions, views, space, cfg, hull, support)
     placed = (length > 0) & (length <= cfg.max_contact_m)
     points = origins[placed] + directions[placed] * middle[placed, None]
