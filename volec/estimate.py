@@ -5,8 +5,9 @@ an :class:`EstimateConfig`. Out, in the output folder (which is also the work fo
 re-run reuses the finished SfM, dense and masking stages, and a finished estimate):
 
 - ``scene.ply``, ``food_masked.ply`` (and ``sfm/``, ``dense.json``, ``masking.json``);
-- ``food_completed.ply``: the masked cloud, the rim points (cyan) and the network's points
-  (magenta), with completion;
+- ``food_completed.ply``: the masked cloud, the rim points (cyan) and the shape priors'
+  points (magenta: the network's or a symmetry's, and the underside's mirrored ones), with
+  completion;
 - ``mesh.ply`` and ``mesh.glb``: the closed food mesh (metres, the capture's world frame);
 - ``report.html``: one self-contained page (:mod:`volec.report`): the volume, its trust flag
   and reasons, the frames with the masks' outlines, the clouds and the mesh in a 3D viewer, the
@@ -106,6 +107,7 @@ from volec.space import (
     volume_bounds,
 )
 from volec.trust import Reason, TrustConfig, TrustFacts, assess
+from volec.underside import UndersideConfig, underside_points
 from volec.volume import volume_ml
 
 RESULT_FILE = "result.json"
@@ -171,6 +173,10 @@ class EstimateConfig:
     rims: RimConfig = field(default_factory=RimConfig)
     """Where the food masks' outlines place the surface under the item's widest level, mesh
     with those points too (:mod:`volec.rims`; only with carving silhouettes)."""
+    underside: UndersideConfig = field(default_factory=UndersideConfig)
+    """Where the food is symmetric about a horizontal plane, its upper part reflected below it
+    bounds the wedge under the lowest measured surface (the ``auto`` completion only, with a
+    support plane and the sorted space; :mod:`volec.underside`)."""
 
 
 PRESETS: dict[str, EstimateConfig] = {
@@ -207,8 +213,8 @@ class FoodMesh:
     """Why no support plane was found (None when one was)."""
     completion_summary: dict[str, Any] | None
     completion_share: float | None
-    """Share of the mesh's volume nearer to the network's points than to observed ones
-    (None without completion)."""
+    """Share of the mesh's volume nearer to the shape priors' points (the network's or a
+    symmetry's, the underside's) than to observed ones (None without completion)."""
     seconds: dict[str, float]
     """Wall time of ``completion_s`` (0 without) and ``meshing_s`` (support plane included)."""
     completion_problem: str | None = None
@@ -316,7 +322,7 @@ def load_completion_model(cfg: EstimateConfig) -> SymmCompletion:
 def completion_share(mesh: trimesh.Trimesh, cloud: PointCloud, observed_points: int,
                      pitch_m: float) -> float:
     """Share of the volume inside ``mesh`` whose nearest point of ``cloud`` is one of the
-    network's (those after the first ``observed_points``), on a grid of ``pitch_m``."""
+    shape priors' (those after the first ``observed_points``), on a grid of ``pitch_m``."""
     from scipy.spatial import cKDTree
 
     lo, hi = mesh.bounds
@@ -437,7 +443,9 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     network alone where the half-turn does not apply, mirror or rotation may add nothing).
     ``prior`` views (:func:`mirror_prior`) carve too, where they may. ``rims``
     (:func:`volec.rims.rim_points`) are meshed as measured surface, after the masked points
-    (completion does not see them)."""
+    (completion does not see them). The default completion adds the underside's reflected
+    points last, as a prior's (:func:`volec.underside.underside_points`, with the plane and
+    ``space``)."""
     start = time.perf_counter()
     plane, problem = support
     cloud, summary = masked, None
@@ -452,6 +460,11 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     observed = masked
     if rims is not None and len(rims):
         observed, cloud = with_rims(masked, cloud, rims)
+    if (completion is not None and uses_underside(cfg) and plane is not None
+            and space is not None and observed.normals is not None):
+        below, record = underside_points(observed, plane, space, cfg.underside)
+        cloud = cloud.joined(below)
+        summary = {**(summary or {}), "underside": record}
 
     def meshed() -> MeshResult:
         enclosed = None  # the space the seen surface encloses, for the meshing's check
@@ -481,6 +494,12 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     return FoodMesh(cloud, mesh, volume, plane, problem, summary, share,
                     {"completion_s": round(completion_s, 2), "meshing_s": round(meshing_s, 2)},
                     skipped, len(observed))
+
+
+def uses_underside(cfg: EstimateConfig) -> bool:
+    """True when ``cfg``'s estimate reflects the food's upper part below its horizontal mirror
+    (:mod:`volec.underside`): the default (``auto``) completion with it enabled."""
+    return cfg.use_completion and cfg.underside.enabled and cfg.completion_method == "auto"
 
 
 def with_rims(masked: PointCloud, cloud: PointCloud, rims: PointCloud
@@ -772,8 +791,8 @@ def masks_picture(capture: Capture, masks: MaskSet, folder: Path, frames: int = 
 
 def report_scene(est: Estimate) -> ReportScene:
     """What the report's 3D view shows: the mesh, the measured points (the masked cloud in
-    its colours and the rim points) and the network's points (those the completion added
-    after them)."""
+    its colours and the rim points) and the shape priors' points (those the completion and
+    the underside's mirror added after them)."""
     observed = est.food.observed_points
     return ReportScene(est.food.mesh.mesh, est.food.cloud.subset(np.arange(observed)),
                        est.food.cloud.xyz[observed:], est.view_up)

@@ -190,7 +190,7 @@ def _layer_boxes(data: dict[str, Any]) -> str:
     labels = {"observed": "observed points (their colours; cyan: placed by the masks' "
                           "outlines)",
               "predicted": f'<span style="color:{PREDICTED_COLOUR}">&#9679;</span> '
-                           "the completion network's points"}
+                           "the shape priors' points (completion; the underside's mirror)"}
     boxes = ['<label><input type="checkbox" data-layer="mesh" checked> mesh</label>',
              '<label><input type="checkbox" id="volec-see-through"> see-through mesh</label>']
     for layer in data["layers"]:

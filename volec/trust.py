@@ -27,7 +27,7 @@ REASONS: dict[str, str] = {
                      "reconstructed solid away: masks, poses and cloud disagree",
     "pieces_dropped": "the mesh fell apart and pieces holding more than "
                       "{max_dropped_volume_fraction:.0%} of its volume were dropped",
-    "completion_dominates": "the completion network's points decide more than "
+    "completion_dominates": "the shape priors' points (completion) decide more than "
                             "{max_completion_share:.0%} of the volume",
     "scale_disagreement": "the SfM scale estimates (drift model, short baselines, all "
                           "cameras) disagree by more than {max_scale_disagreement_pct:g} %",
@@ -155,7 +155,7 @@ def assess(facts: TrustFacts, cfg: TrustConfig | None = None) -> list[Reason]:
         flag("pieces_dropped", f"mesh pieces holding {facts.dropped_volume_ml:.1f} mL were "
              f"dropped beside the {facts.volume_ml:.1f} mL kept")
     if facts.completion_share is not None and facts.completion_share > cfg.max_completion_share:
-        flag("completion_dominates", f"the completion network's points decide "
+        flag("completion_dominates", f"the shape priors' points (completion) decide "
              f"{100 * facts.completion_share:.0f} % of the volume: it is more prediction than "
              "observation")
     spread = scale_disagreement_pct(facts.scale_estimates)

@@ -1,0 +1,82 @@
+"""The underside by a horizontal mirror: the food's upper part reflected into the wedge above the
+plate that no camera constrained."""
+
+import numpy as np
+
+from tests.test_meshing import _sphere_on_table
+from tests.test_rims import _seen_from_above
+from volec.meshing import SupportPlane
+from volec.pointcloud import PointCloud
+from volec.space import EMPTY, FOOD, SpaceGrid, observed_space
+from volec.underside import UndersideConfig, facing_out, fit_level, underside_points
+
+UP = np.array([0.0, 0.0, 1.0])
+
+
+def test_a_sphere_s_underside_is_its_upper_half_reflected():
+    r = 0.03
+    centre, cloud, table, _, space = _seen_from_above(r)
+    points, record = underside_points(cloud, table, space, UndersideConfig())
+    assert record["symmetric"]
+    assert abs(record["mirror_height_mm"] - 1000 * r) < 0.3
+    assert len(points) > 300
+    radius = np.linalg.norm(points.xyz - centre, axis=1)
+    assert np.median(np.abs(radius - r)) < 0.0003
+    assert np.abs(radius - r).max() < 0.0015
+    # only in the wedge nothing was seen: below the lowest observed point, above the table
+    lowest = cloud.xyz[:, 2].min()
+    assert points.xyz[:, 2].max() < lowest + 0.001 and points.xyz[:, 2].min() > 0
+    outward = (points.xyz - centre) / radius[:, None]
+    assert np.median(np.einsum("ij,ij->i", outward, points.normals)) > 0.99
+
+
+def test_a_fuller_top_is_laid_on_the_bottom_the_cameras_saw():
+    # the upper half bulges 0.6 mm beyond the sphere the lower part follows (seen down to a
+    # tenth of its height, as the rim points reach): mirrored at the mid-height it would lie
+    # 0.6 mm outside at the bottom; the level is chosen where it lands on the seen bottom
+    r, bulge = 0.03, 0.0006
+    centre, d, table, views = _sphere_on_table(r)
+    d = d[d[:, 2] > -0.8]
+    fuller = PointCloud(centre + np.where(d[:, 2:] > 0, r + bulge, r) * d, None, d)
+    space = observed_space(PointCloud(centre + r * d, None, d), views, table)
+    points, record = underside_points(fuller, table, space, UndersideConfig())
+    assert record["symmetric"] and len(points) > 50
+    radius = np.linalg.norm(points.xyz - centre, axis=1)
+    assert abs(np.median(radius - r)) < 0.3 * bulge
+
+
+def _dome(r: float) -> tuple[PointCloud, SupportPlane, SpaceGrid]:
+    """A hemisphere of radius ``r`` lying on its flat face on the table z = 0, its dome seen
+    (with outward normals), and a space where everything but the dome's inside was seen
+    empty."""
+    d = np.random.default_rng(4).normal(size=(20000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d = d[d[:, 2] > 0.02]
+    pitch = 0.002
+    lower = np.array([-1.5 * r, -1.5 * r, 0.0])
+    axes = [lower[i] + pitch * np.arange(int(3 * r / pitch) + 1) for i in range(3)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+    state = np.where(np.linalg.norm(grid, axis=-1) < r, FOOD, EMPTY).astype(np.int8)
+    return (PointCloud(r * d, None, d), SupportPlane((0.0, 0.0, 1.0), 0.0, 1000, 0.0),
+            SpaceGrid(lower, pitch, state))
+
+
+def test_a_dome_on_its_flat_face_is_not_taken_as_symmetric():
+    cloud, table, space = _dome(0.03)
+    fit = fit_level(cloud.xyz, cloud.normals, table.height_m(cloud.xyz), UP, space,
+                    UndersideConfig())
+    assert not fit.symmetric
+    points, record = underside_points(cloud, table, space, UndersideConfig())
+    assert len(points) == 0 and not record["symmetric"]
+
+
+def test_only_surface_facing_away_from_the_vertical_axis_bounds_the_wedge():
+    centre = np.array([0.01, 0.02, 0.0])
+    points = centre + np.array([[0.02, 0.0, 0.005], [0.0, -0.02, 0.005], [0.02, 0.0, 0.005],
+                                [0.0, 0.02, 0.01]])
+    normals = np.array([[1.0, 0.0, 0.0],  # straight out
+                        [0.0, -0.6, -0.8],  # out and down
+                        [-1.0, 0.0, 0.0],  # towards the axis: a hollow
+                        [0.0, 0.2, -0.98]])  # nearly straight down: too little out
+    np.testing.assert_array_equal(facing_out(points, normals, centre, UP, 0.3),
+                                  [True, True, False, False])
