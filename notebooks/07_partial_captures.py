@@ -49,7 +49,10 @@
 # - **volec's default**: the half-turn where the masked cloud is symmetric under it, then the
 #   network for what is still missing (the network alone where it is not); where the cloud is
 #   symmetric about a vertical plane, the views reflected in it carve the space no camera
-#   showed to be food.
+#   showed to be food; where it is symmetric about a horizontal plane, its top reflected below
+#   that plane fills the wedge above the plate that no camera reached (`volec.underside`).
+#   Every method but the visual hull meshes the rim points the masks' outlines place
+#   (`volec.rims`) with the masked cloud.
 #
 # Volumes are scored against the true volume (APE: absolute percentage error) and each mesh by
 # its Chamfer-L1 distance to the true surface. The ground truth is read only to score.
