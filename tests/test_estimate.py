@@ -49,6 +49,10 @@ def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys
     assert result["mesh"]["silhouette_views"] == 16
     assert (result["mesh"]["prior_views"] or 0) == mirror["views_carving"]
     assert mirror["spare_seen_food"] is True
+    # the default completion looked for the underside's horizontal mirror, and says so
+    underside = result["completion"]["underside"]
+    assert {"mirror_height_mm", "symmetric", "kept", "seconds"} <= set(underside)
+    assert underside["symmetric"] or underside["kept"] == 0
     assert 0.0 <= result["mesh"]["carved_fraction"] < 0.25
     for name in ("scene.ply", "food_masked.ply", "food_completed.ply", "report.md",
                  "report/stages_above.png", "report/masks.png"):
