@@ -94,8 +94,8 @@ class LevelFit:
     height_m: float
     """The mirror plane's height above the plate, metres (NaN when no level could be scored)."""
     median_distance_m: float
-    """Median distance to the cloud of the reflected sample points that land in seen space
-    (truncated at the score's reach)."""
+    """Median distance to the cloud of the sample points from above the level that land,
+    reflected, in seen space below it (truncated at the score's reach)."""
     symmetric: bool
 
     def record(self) -> dict[str, Any]:
