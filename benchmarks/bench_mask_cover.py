@@ -21,16 +21,9 @@ Written to figures/mask_cover_SCENARIO.{csv,md}.
 
 from __future__ import annotations
 
-import argparse
 from typing import Any
 
-import pandas as pd
-from scipy.stats import ttest_rel
-
-from volec.experiments import benchmark_stages, map_items
-from volec.paths import figures_dir
-from volec.synth import item_names
-from volec.tables import write_table
+from volec.experiments import benchmark_stages, on_off_arguments, on_off_table, paired_errors
 
 
 def cover_row(item: str, scenario_name: str, settings: tuple[str, ...] = ()
@@ -68,29 +61,19 @@ def cover_row(item: str, scenario_name: str, settings: tuple[str, ...] = ()
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenarios", nargs="+", default=["full_orbit", "half_orbit", "sparse"])
-    parser.add_argument("--items", nargs="+", default=item_names())
-    parser.add_argument("--workers", type=int, default=1)
-    parser.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
-                        help="change a setting of the default, e.g. "
-                             "meshing.food_cover.rounds=0 (no enclosed space's check)")
-    args = parser.parse_args()
+    args = on_off_arguments(__doc__.splitlines()[0],
+                            "meshing.food_cover.rounds=0 (no enclosed space's check)",
+                            ["full_orbit", "half_orbit", "sparse"])
     for name in args.scenarios:
-        jobs = [(item, name, tuple(args.set)) for item in args.items]
-        raw = pd.DataFrame(map_items(cover_row, jobs, [f"{i} {name}" for i, _, _ in jobs],
-                                     args.workers, progress=True))
-        write_table(raw, figures_dir() / f"mask_cover_{name}", float_digits=2)
-        before, after = raw["unchecked_err_pct"].abs(), raw["default_err_pct"].abs()
-        p = ttest_rel(after, before).pvalue if len(raw) > 1 and (after != before).any() else None
-        print(f"{name}: {len(raw)} items, MAPE without the check {before.mean():.2f} %, "
-              f"with it (default) {after.mean():.2f} % (paired p {p}); repaired "
+        raw = on_off_table(cover_row, name, args, "mask_cover")
+        e = paired_errors(raw["unchecked_err_pct"], raw["default_err_pct"])
+        print(f"{name}: {len(raw)} items, MAPE without the check {e['mape_without']:.2f} %, "
+              f"with it (default) {e['mape_with']:.2f} % (paired p {e['p']}); repaired "
               f"{int((raw['repairs'] > 0).sum())}")
         enclosed = raw["before_enclosed_check_err_pct"].abs()
         print(f"  before the enclosed space's check {enclosed.mean():.2f} %; repaired "
               f"{int((raw['enclosed_repairs'] > 0).sum())}")
         print(raw.drop(columns=["scenario", "gt_ml"]).round(2).to_string(index=False))
-
 
 if __name__ == "__main__":
     main()

@@ -15,17 +15,10 @@ the absolute errors. Written to figures/underside_SCENARIO.{csv,md}.
 
 from __future__ import annotations
 
-import argparse
 from dataclasses import replace
 from typing import Any
 
-import pandas as pd
-from scipy.stats import ttest_rel
-
-from volec.experiments import benchmark_stages, map_items
-from volec.paths import figures_dir
-from volec.synth import item_names
-from volec.tables import write_table
+from volec.experiments import benchmark_stages, on_off_arguments, on_off_table, paired_errors
 
 
 def underside_row(item: str, scenario_name: str, settings: tuple[str, ...] = ()
@@ -60,25 +53,15 @@ def underside_row(item: str, scenario_name: str, settings: tuple[str, ...] = ()
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenarios", nargs="+", default=["full_orbit"])
-    parser.add_argument("--items", nargs="+", default=item_names())
-    parser.add_argument("--workers", type=int, default=1)
-    parser.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
-                        help="change a setting of the default, e.g. underside.min_facing_out=0.5")
-    args = parser.parse_args()
+    args = on_off_arguments(__doc__.splitlines()[0], "underside.min_facing_out=0.5",
+                            ["full_orbit"])
     for name in args.scenarios:
-        jobs = [(item, name, tuple(args.set)) for item in args.items]
-        raw = pd.DataFrame(map_items(underside_row, jobs, [f"{i} {name}" for i, _, _ in jobs],
-                                     args.workers, progress=True))
-        write_table(raw, figures_dir() / f"underside_{name}", float_digits=2)
-        before, after = raw["without_err_pct"].abs(), raw["default_err_pct"].abs()
-        p = ttest_rel(after, before).pvalue if len(raw) > 1 and (after != before).any() else None
-        print(f"{name}: {len(raw)} items, MAPE without the underside {before.mean():.2f} %, "
-              f"with it (default) {after.mean():.2f} % (paired p {p}); mean signed error "
-              f"{raw['without_err_pct'].mean():+.2f} -> {raw['default_err_pct'].mean():+.2f} %")
+        raw = on_off_table(underside_row, name, args, "underside")
+        e = paired_errors(raw["without_err_pct"], raw["default_err_pct"])
+        print(f"{name}: {len(raw)} items, MAPE without the underside {e['mape_without']:.2f} %, "
+              f"with it (default) {e['mape_with']:.2f} % (paired p {e['p']}); mean signed error "
+              f"{e['mean_without']:+.2f} -> {e['mean_with']:+.2f} %")
         print(raw.drop(columns=["scenario", "gt_ml"]).round(2).to_string(index=False))
-
 
 if __name__ == "__main__":
     main()

@@ -277,3 +277,18 @@ def test_a_capture_rendered_again_as_the_same_bytes_keeps_its_stages(quick_captu
     assert image.read_bytes() == (quick_capture / image.relative_to(out)).read_bytes()
     assert generate.is_current(out, scenario.synth)
     assert sorted(p.name for p in tmp_path.iterdir()) == [out.name]  # no scratch left
+
+
+def test_paired_errors_give_the_mapes_means_and_the_two_sided_p_of_three_items():
+    from volec.experiments import paired_errors
+
+    without, with_ = pd.Series([1.0, -2.0, 3.0]), pd.Series([0.5, -1.0, 3.5])
+    e = paired_errors(without, with_)
+    assert e["mape_without"] == 2.0 and e["mape_with"] == pytest.approx(5 / 3)
+    assert e["mean_without"] == pytest.approx(2 / 3) and e["mean_with"] == 1.0
+    # t of the absolute errors' differences (-0.5, -1, 0.5) on 2 degrees of freedom, whose
+    # two-sided p is 1 - |t| / sqrt(2 + t^2)
+    d = np.array([-0.5, -1.0, 0.5])
+    t = d.mean() / (d.std(ddof=1) / np.sqrt(3))
+    assert e["p"] == pytest.approx(1 - abs(t) / np.sqrt(2 + t * t), rel=1e-9)
+    assert paired_errors(without, without)["p"] is None  # nothing changed: no test

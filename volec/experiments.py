@@ -16,6 +16,7 @@ their rows never mix. The volume experiment runs the same core as ``volec estima
 
 from __future__ import annotations
 
+import argparse
 import json
 import time
 from collections.abc import Callable
@@ -641,6 +642,48 @@ def map_items(function: Callable[..., dict[str, Any]], jobs: list[tuple], labels
 
 
 VOLUME_CACHE = "volume_eval.json"
+
+
+def on_off_arguments(description: str, example: str, default_scenarios: list[str]
+                     ) -> argparse.Namespace:
+    """The command line of a benchmark that makes the default with a part of it on and off on
+    one basis per item: ``--scenarios``, ``--items``, ``--workers`` and ``--set`` (``example``
+    shows one)."""
+    from volec.synth import item_names
+
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--scenarios", nargs="+", default=default_scenarios)
+    parser.add_argument("--items", nargs="+", default=item_names())
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
+                        help=f"change a setting of the default, e.g. {example}")
+    return parser.parse_args()
+
+
+def on_off_table(row: Callable[..., dict[str, Any]], scenario_name: str,
+                 args: argparse.Namespace, stem: str) -> pd.DataFrame:
+    """``row(item, scenario_name, settings)`` for every item of ``args`` (on its workers), as
+    one table, written to figures/STEM_SCENARIO.{csv,md}."""
+    from volec.paths import figures_dir
+    from volec.tables import write_table
+
+    jobs = [(item, scenario_name, tuple(args.set)) for item in args.items]
+    raw = pd.DataFrame(map_items(row, jobs, [f"{i} {scenario_name}" for i, _, _ in jobs],
+                                 args.workers, progress=True))
+    write_table(raw, figures_dir() / f"{stem}_{scenario_name}", float_digits=2)
+    return raw
+
+
+def paired_errors(without_pct: pd.Series, with_pct: pd.Series) -> dict[str, float | None]:
+    """Both MAPEs, both mean signed errors (%) and the paired t-test's p of the absolute errors
+    (None with one item or none changed) of the same items without and with a change."""
+    from scipy.stats import ttest_rel
+
+    before, after = without_pct.abs(), with_pct.abs()
+    changed = len(before) > 1 and bool((after != before).any())
+    return {"mape_without": float(before.mean()), "mape_with": float(after.mean()),
+            "p": float(ttest_rel(after, before).pvalue) if changed else None,
+            "mean_without": float(without_pct.mean()), "mean_with": float(with_pct.mean())}
 
 
 def method_variants(cfg: EstimateConfig, model: Any) -> dict[str, tuple[EstimateConfig, Any]]:

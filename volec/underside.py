@@ -39,9 +39,9 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from volec.meshing import SupportPlane
+from volec.meshing import SupportPlane, near_points
 from volec.pointcloud import PREDICTED_RGB, PointCloud
-from volec.space import UNKNOWN, SpaceGrid
+from volec.space import UNKNOWN, SpaceGrid, thinned
 
 
 @dataclass(frozen=True)
@@ -149,10 +149,12 @@ def fit_level(xyz: np.ndarray, normals: np.ndarray, height_m: np.ndarray, up: np
         low = moved_h[checked] < band_m
         if not low.any():
             return np.inf, np.inf
-        near = low & np.isfinite(distance)
-        plane = np.full(int(low.sum()), radius)
-        plane[near[low]] = np.minimum(np.abs(np.einsum(
-            "ij,ij->i", moved[checked][near] - xyz[index[near]], normals[index[near]])), radius)
+        low_points, low_index = moved[checked][low], index[low]
+        near = np.isfinite(distance[low])
+        plane = np.full(len(low_points), radius)
+        plane[near] = np.minimum(np.abs(np.einsum(
+            "ij,ij->i", low_points[near] - xyz[low_index[near]], normals[low_index[near]])),
+            radius)
         return float(plane.mean()), float(np.median(np.minimum(distance, radius)))
 
     coarse = np.linspace(cfg.lowest_share, cfg.highest_share, cfg.levels) * top
@@ -185,12 +187,6 @@ def facing_out(points: np.ndarray, normals: np.ndarray, centre: np.ndarray, up: 
     return np.einsum("ij,ij->i", away, level) > min_share * reach
 
 
-def one_per_voxel(points: np.ndarray, voxel_m: float) -> np.ndarray:
-    """Indices of the first of ``points`` in each voxel of ``voxel_m``."""
-    keys = np.floor(points / voxel_m).astype(np.int64)
-    return np.sort(np.unique(keys, axis=0, return_index=True)[1])
-
-
 def underside_points(observed: PointCloud, support: SupportPlane, space: SpaceGrid,
                      cfg: UndersideConfig) -> tuple[PointCloud, dict[str, Any]]:
     """The reflected points (normals set, coloured as a prior's) that land in ``space``'s
@@ -213,12 +209,10 @@ def underside_points(observed: PointCloud, support: SupportPlane, space: SpaceGr
         keep = ((support.height_m(points) > 0) & (space.states_at(points) == UNKNOWN)
                 & facing_out(points, normals, observed.xyz.mean(axis=0), up,
                              cfg.min_facing_out))
-        points, normals = points[keep], normals[keep]
-        far = ~np.isfinite(cKDTree(observed.xyz).query(
-            points, distance_upper_bound=cfg.min_gap_m)[0])
-        points, normals = points[far], normals[far]
-        first = one_per_voxel(points, cfg.voxel_m)
-        points, normals = points[first], normals[first]
+        cloud = PointCloud(points[keep], None, normals[keep])
+        cloud = thinned(cloud.subset(~near_points(cloud.xyz, observed.xyz, cfg.min_gap_m)),
+                        cfg.voxel_m)
+        points, normals = cloud.xyz, cloud.normals
         record["kept"] = int(len(points))
     record["seconds"] = round(time.perf_counter() - start, 2)
     rgb = np.tile(np.array(PREDICTED_RGB, np.uint8), (len(points), 1))
