@@ -11,14 +11,18 @@ import trimesh
 from volec.capture import Capture, Frame, Intrinsics
 from volec.geometry import look_at_opencv
 from volec.metrics import (
+    bottom_gap,
     chamfer_distance,
     cloud_scores,
     distances_to_surface,
+    elevations_deg,
     height_band_offsets,
+    hidden_columns,
     mesh_offset_scores,
     sample_surface,
     signed_distances_to_surface,
     views_seeing,
+    volume_below_gap,
 )
 
 BOX = trimesh.creation.box(extents=(0.1, 0.1, 0.1))  # centred at the origin
@@ -143,3 +147,49 @@ def test_height_bands_find_an_offset_of_the_lower_half_and_where_the_cloud_is():
     assert sum(r["mesh_offset_pct"] for r in rows) == pytest.approx(exact_pct, rel=0.05)
     assert rows[2]["mesh_offset_pct"] + rows[3]["mesh_offset_pct"] == pytest.approx(
         0.0, abs=0.05 * exact_pct)
+
+
+def _resting_sphere(radius_m: float) -> trimesh.Trimesh:
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=radius_m)
+    sphere.apply_translation([0.0, 0.0, radius_m])
+    return sphere
+
+
+def _sphere_gap_within(radius_m: float, rim_m: float) -> float:
+    """The gap under a sphere resting on a plane, inside the radius ``rim_m``: the integral of
+    2 pi rho (R - sqrt(R^2 - rho^2)) from 0 to ``rim_m``."""
+    r = radius_m
+    return np.pi * rim_m**2 * r - 2 * np.pi / 3 * (r**3 - (r * r - rim_m**2) ** 1.5)
+
+
+def test_the_gap_under_a_resting_sphere_is_a_third_of_pi_r_cubed():
+    radius = 0.03
+    _, gap, edge = bottom_gap(_resting_sphere(radius), np.array([0.0, 0.0, 1.0]), 0.0005)
+    assert gap.sum() * 0.0005**2 == pytest.approx(np.pi * radius**3 / 3, rel=0.01)
+    assert edge.max() == pytest.approx(radius, abs=0.001)  # the footprint's centre
+
+
+def test_hidden_columns_and_what_a_flat_bottom_fills_there():
+    radius, elevation = 0.03, 30.0
+    up = np.array([0.0, 0.0, 1.0])
+    base, gap, edge = bottom_gap(_resting_sphere(radius), up, 0.0005)
+    hidden = hidden_columns(gap, edge, elevation)
+    # hidden where (R - rho) tan(e) > R - sqrt(R^2 - rho^2): inside the radius solved here
+    rho = np.linspace(0, radius, 200001)
+    seen = (radius - rho) * np.tan(np.radians(elevation)) <= radius - np.sqrt(radius**2 - rho**2)
+    rim = rho[np.argmax(seen)]
+    expected = _sphere_gap_within(radius, rim)
+    assert gap[hidden].sum() * 0.0005**2 == pytest.approx(expected, rel=0.03)
+    # a cylinder standing on the plane fills all of that gap; the sphere itself none of it
+    cylinder = trimesh.creation.cylinder(radius=radius, height=2 * radius, sections=128)
+    cylinder.apply_translation([0.0, 0.0, radius])
+    filled = volume_below_gap(cylinder, base[hidden], gap[hidden], up, 0.0005)
+    assert filled == pytest.approx(expected, rel=0.03)
+    assert volume_below_gap(_resting_sphere(radius), base, gap, up, 0.0005) == 0.0
+
+
+def test_elevations_of_points_around_a_centre():
+    centre = np.array([1.0, 2.0, 3.0])
+    points = centre + np.array([[1.0, 0.0, 1.0], [0.0, 2.0, 0.0], [0.0, -1.0, -np.sqrt(3.0)]])
+    assert elevations_deg(points, centre, np.array([0.0, 0.0, 2.0])) == pytest.approx(
+        [45.0, 0.0, -60.0])

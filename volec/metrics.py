@@ -12,9 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 import trimesh
+from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from volec.capture import Capture
+from volec.geometry import horizontal_axes
 from volec.meshing import ray_scene
 
 
@@ -226,3 +228,65 @@ def height_band_offsets(mesh: trimesh.Trimesh, truth: trimesh.Trimesh, cloud_xyz
             "mesh_offset_pct": float(100.0 * signed[in_mesh].sum() * sample_area
                                      / truth.volume)})
     return rows
+
+
+def bottom_gap(mesh: trimesh.Trimesh, up: np.ndarray, step_m: float = 0.0005
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The space between a resting item's underside and the plane of its lowest point.
+
+    Per column of a horizontal grid ``step_m`` apart under ``mesh``'s footprint: the point (M,
+    3) where the column meets that plane, the height (M,) of the mesh's lowest surface above
+    it, and the column's distance (M,) to the footprint's edge (metres). A vertical ray from
+    below finds each column's lowest surface."""
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    side, other = horizontal_axes(up)
+    vertices = np.asarray(mesh.vertices, float)
+    bottom = float((vertices @ up).min())
+    u, v = vertices @ side, vertices @ other
+    us = np.arange(u.min() + step_m / 2, u.max(), step_m)
+    vs = np.arange(v.min() + step_m / 2, v.max(), step_m)
+    grid_u, grid_v = (a.ravel() for a in np.meshgrid(us, vs, indexing="ij"))
+    base = np.outer(grid_u, side) + np.outer(grid_v, other) + bottom * up
+    below = base - 0.01 * up
+    hits, rays, _ = mesh.ray.intersects_location(below, np.tile(up, (len(base), 1)),
+                                                 multiple_hits=False)
+    gap = np.full(len(base), np.nan)
+    gap[rays] = hits @ up - bottom
+    footprint = np.isfinite(gap).reshape(len(us), len(vs))
+    edge = ndimage.distance_transform_edt(footprint).ravel() * step_m
+    inside = footprint.ravel()
+    return base[inside], gap[inside], edge[inside]
+
+
+def elevations_deg(points: np.ndarray, centre: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """The elevation (N,) in degrees of each of ``points`` (N, 3) seen from ``centre``: the
+    angle of the direction to it above the plane through ``centre`` normal to ``up``."""
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    rel = np.asarray(points, float) - centre
+    return np.degrees(np.arcsin(np.clip(rel @ up / np.linalg.norm(rel, axis=1), -1.0, 1.0)))
+
+
+def hidden_columns(gap_m: np.ndarray, edge_m: np.ndarray, lowest_elevation_deg: float
+                   ) -> np.ndarray:
+    """(M,) True where no camera at ``lowest_elevation_deg`` above the plane or higher can see
+    into a column of :func:`bottom_gap`: a ray that slips under the footprint's edge and
+    reaches the column falls by more than the column's gap on its way in (the underside
+    taken no lower than the column's own gap all the way to the edge)."""
+    return edge_m * np.tan(np.radians(lowest_elevation_deg)) > gap_m
+
+
+def volume_below_gap(estimate: trimesh.Trimesh, base: np.ndarray, gap_m: np.ndarray,
+                     up: np.ndarray, step_m: float, depth_m: float = 0.003,
+                     dz_m: float = 0.0001) -> float:
+    """Volume (m^3) of the closed ``estimate`` inside the columns of :func:`bottom_gap`
+    (``base`` points, ``step_m`` wide) between ``depth_m`` below the plane and the true
+    underside ``gap_m`` above it: what the estimate puts where the item is not, under it."""
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    total = 0.0
+    heights = np.arange(-depth_m + dz_m / 2, float(np.max(gap_m, initial=0.0)), dz_m)
+    for part in np.array_split(np.arange(len(base)), max(1, len(base) * len(heights) // 2_000_000)):
+        points = base[part, None] + heights[None, :, None] * up
+        under = heights[None] < gap_m[part, None]
+        inside = estimate.contains(points[under])
+        total += float(inside.sum())
+    return total * dz_m * step_m**2
