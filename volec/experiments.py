@@ -940,9 +940,11 @@ def segmentation_row(root: Path, item: str, scenario: Scenario, cfg: EstimateCon
             model = load_completion_model(cfg)
             row["auto_ml"] = _volume_with_masks(out, capture, masks, "work-auto", cfg, model)
             # imperfect masks get the settings volec documents for them (the tolerant_masks
-            # preset's masking and carving), the rest of the experiment's config unchanged
+            # preset's masking, carving and underside), the rest of the experiment's config
+            # unchanged
             tolerant = PRESETS["tolerant_masks"]
-            noisy_cfg = replace(cfg, masking=tolerant.masking, meshing=replace(
+            noisy_cfg = replace(cfg, masking=tolerant.masking, underside=tolerant.underside,
+                                meshing=replace(
                 cfg.meshing, silhouette_min_views=tolerant.meshing.silhouette_min_views,
                 silhouette_min_share=tolerant.meshing.silhouette_min_share,
                 silhouette_margin_px=tolerant.meshing.silhouette_margin_px))
