@@ -943,11 +943,12 @@ def segmentation_row(root: Path, item: str, scenario: Scenario, cfg: EstimateCon
             # preset's masking, carving and underside), the rest of the experiment's config
             # unchanged
             tolerant = PRESETS["tolerant_masks"]
-            noisy_cfg = replace(cfg, masking=tolerant.masking, underside=tolerant.underside,
-                                meshing=replace(
-                cfg.meshing, silhouette_min_views=tolerant.meshing.silhouette_min_views,
-                silhouette_min_share=tolerant.meshing.silhouette_min_share,
-                silhouette_margin_px=tolerant.meshing.silhouette_margin_px))
+            noisy_cfg = replace(
+                cfg, masking=tolerant.masking, underside=tolerant.underside,
+                meshing=replace(
+                    cfg.meshing, silhouette_min_views=tolerant.meshing.silhouette_min_views,
+                    silhouette_min_share=tolerant.meshing.silhouette_min_share,
+                    silhouette_margin_px=tolerant.meshing.silhouette_margin_px))
             row["noisy_ml"] = _volume_with_masks(out, capture, noisy, "work-noisy", noisy_cfg,
                                                  model)
         return row
