@@ -35,7 +35,7 @@ def contact_gap_row(item: str, scenario_name: str, settings: tuple[str, ...] = (
         load_completion_model,
         with_settings,
     )
-    from volec.experiments import benchmark_stages, scenarios
+    from volec.experiments import benchmark_stages
     from volec.metrics import (
         bottom_gap,
         elevations_deg,
@@ -43,7 +43,6 @@ def contact_gap_row(item: str, scenario_name: str, settings: tuple[str, ...] = (
         rigid_alignment,
         volume_below_gap,
     )
-    from volec.paths import experiment_dir
     from volec.synth import load_ground_truth_mesh, load_truth
 
     cfg = with_settings(EstimateConfig(), settings)
@@ -51,9 +50,8 @@ def contact_gap_row(item: str, scenario_name: str, settings: tuple[str, ...] = (
     capture, stages = bench.capture, bench.stages
     est = estimate_from_stages(capture, stages, load_completion_model(cfg), cfg,
                                food_silhouettes(capture, stages, cfg))
-    folder = scenarios(False)[scenario_name].folder(experiment_dir(False), item)
-    truth = load_ground_truth_mesh(folder)
-    up = np.asarray(load_truth(folder).get("world_up", [0.0, 0.0, 1.0]), float)
+    truth = load_ground_truth_mesh(bench.folder)
+    up = np.asarray(load_truth(bench.folder).get("world_up", [0.0, 0.0, 1.0]), float)
     masked = stages.masked.cloud.xyz
     mesh = est.food.mesh.mesh.copy()
     mesh.apply_transform(rigid_alignment(masked[::5], truth))

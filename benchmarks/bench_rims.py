@@ -22,14 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from volec.experiments import (
-    benchmark_stages,
-    on_off_arguments,
-    on_off_table,
-    paired_errors,
-    scenarios,
-)
-from volec.paths import experiment_dir
+from volec.experiments import benchmark_stages, on_off_arguments, on_off_table, paired_errors
 
 
 def rims_row(item: str, scenario_name: str, settings: tuple[str, ...] = ()) -> dict[str, Any]:
@@ -65,8 +58,7 @@ def rims_row(item: str, scenario_name: str, settings: tuple[str, ...] = ()) -> d
            "kept": record.get("kept", 0), "median_stretch_mm": record.get("median_stretch_mm"),
            "rims_s": record.get("seconds")}
     if basis.rims is not None and len(basis.rims):
-        truth = load_ground_truth_mesh(scenarios(False)[scenario_name].folder(
-            experiment_dir(False), item))
+        truth = load_ground_truth_mesh(bench.folder)
         T = rigid_alignment(stages.masked.cloud.xyz[::5], truth)
         placed = basis.rims.xyz @ T[:3, :3].T + T[:3, 3]
         signed_mm = signed_distances_to_surface(placed, truth) * 1000

@@ -128,6 +128,8 @@ class BenchmarkStages:
     stages: StageResults
     truth_ml: float
     """The true volume, mL: for scoring only."""
+    folder: Path
+    """The capture's benchmark folder (its ``ground_truth/`` is read only to score)."""
 
 
 def benchmark_stages(item: str, scenario_name: str, cfg: EstimateConfig) -> BenchmarkStages:
@@ -139,7 +141,7 @@ def benchmark_stages(item: str, scenario_name: str, cfg: EstimateConfig) -> Benc
     capture = scenario_capture(out, scenario)
     stages = run_stages(capture, scenario.work(out), cfg.sfm, cfg.dense, cfg.masking,
                         stale="recompute", progress=False)
-    return BenchmarkStages(capture, stages, load_ground_truth_mesh(out).volume * 1e6)
+    return BenchmarkStages(capture, stages, load_ground_truth_mesh(out).volume * 1e6, out)
 
 
 def scenarios(quick: bool) -> dict[str, Scenario]:
