@@ -301,10 +301,16 @@ def _edges(label: np.ndarray, depth: np.ndarray, rgb: np.ndarray, look: LookConf
         differ = ((label[a] != label[b])
                   | (np.abs(finite[a] - finite[b]) > look.edge_depth_jump * np.minimum(
                       finite[a], finite[b]))
-                  | (np.abs(rgb[a] - rgb[b]).max(axis=-1) > look.edge_colour_jump))
+                  | (_largest_channel(np.abs(rgb[a] - rgb[b])) > look.edge_colour_jump))
         edges[a] |= differ
         edges[b] |= differ
     return edges
+
+
+def _largest_channel(rgb: np.ndarray) -> np.ndarray:
+    """(..., 3) -> (...): the largest of the three channels, as ``rgb.max(axis=-1)`` gives it
+    but elementwise (a reduction over a last axis of 3 took 8 % of a frame's time)."""
+    return np.maximum(np.maximum(rgb[..., 0], rgb[..., 1]), rgb[..., 2])
 
 
 def _barycentric(corners: np.ndarray, points: np.ndarray) -> np.ndarray:
