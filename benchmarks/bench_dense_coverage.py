@@ -9,7 +9,8 @@ data/bench-sfm/ITEM-SCENARIO/work, or run there), dense stereo and masking are r
 and, when given, once with the ``--set`` ones (``SECTION.FIELD=VALUE`` of
 :class:`volec.estimate.EstimateConfig`, as ``bench_volume.py``). Scored against the true
 surface (read only to score): the share of the surface at least two cameras see that the
-masked cloud covers within 2 mm (``coverage_pct``), the masked cloud's signed distance
+masked cloud covers within 2 mm (``coverage_pct``), the dense stage's time (``dense_s``), the
+masked cloud's signed distance
 (median, 10th and 90th percentile, mm), the same median after a rigid alignment to the truth
 (what is the shape's own, not the poses' misplacement), and the fused cloud's median signed
 distance near the surface (within 3 mm) before masking. Written to
@@ -64,6 +65,7 @@ def coverage_rows(item: str, scenario_name: str, settings: tuple[str, ...]
         aligned = signed_distances_to_surface(masked.cloud.xyz @ T[:3, :3].T + T[:3, 3], truth)
         rows.append({
             "item": item, "config": name, "food_points": len(masked.cloud),
+            "dense_s": float(sum(dense.summary["timings_s"].values())),
             "coverage_pct": 100 * scores["completeness_visible"],
             "signed_median_mm": 1000 * scores["cloud_signed_median_m"],
             "signed_p10_mm": 1000 * scores["cloud_signed_p10_m"],
