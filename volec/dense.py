@@ -495,10 +495,14 @@ def _ncc(ref: _Reference, term, inv_depth, cfg: DenseConfig):
 def _window_ncc(warped, squared, product, ref_mean, ref_std, k: int):
     """NCC (D, h, w) over k x k windows from the warped source, its square, its product with
     the reference, and the reference's window mean and standard deviation."""
+    # In place where a tensor is not needed again: the same operations in the same order
+    # (the same bits) with fewer (D, h, w) temporaries.
     mean_s = _box_mean(warped, k)
-    var_s = (_box_mean(squared, k) - mean_s * mean_s).clamp_min_(0)
-    cov = _box_mean(product, k) - mean_s * ref_mean
-    return cov / (ref_std * var_s.sqrt_() + 1e-6)
+    var_s = _box_mean(squared, k)
+    var_s -= mean_s * mean_s
+    cov = _box_mean(product, k)
+    cov -= mean_s.mul_(ref_mean)
+    return cov.div_(var_s.clamp_min_(0).sqrt_().mul_(ref_std).add_(1e-6))
 
 
 def _aggregate(ref: _Reference, terms, inv_depth, cfg: DenseConfig):
