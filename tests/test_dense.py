@@ -360,3 +360,28 @@ def test_a_coarse_first_sweep_recovers_the_plane_and_more_of_a_faint_one(plane_s
           np.median(full_rel), np.median(coarse_rel))
     assert coarse_good > 1.2 * full_good
     assert np.median(coarse_rel) < np.median(full_rel)
+
+
+def test_the_coarse_start_is_taken_only_where_the_surface_faces_the_camera(plane_scene):
+    from volec.dense import _facing, _Reference
+
+    views, depths = plane_scene
+    view, truth = views[0], depths[0]
+    # The camera looks at the plane from 50 degrees of elevation with a 56-degree field of
+    # view: the cosines between the plane's normal and the view rays lie between 0.43 and 0.95.
+    T = invert_rigid(view.T_cam_from_world)
+    u, v = np.meshgrid(np.arange(W), np.arange(H))
+    rays = np.stack([(u - K[0, 2]) / F, (v - K[1, 2]) / F, np.ones((H, W))], -1) @ T[:3, :3].T
+    cosine = np.abs(rays[..., 2]) / np.linalg.norm(rays, axis=-1)
+    ref = _Reference(view, DenseConfig(), torch.device("cpu"))
+    inv = torch.from_numpy((1.0 / truth).astype(np.float32).reshape(-1))
+    facing = _facing(view, ref, inv, 0.75).numpy().reshape(H, W)
+    inner = (slice(8, -8), slice(8, -8))
+    assert np.mean(facing[inner] == (cosine[inner] >= 0.75)) > 0.99
+    assert 0.2 < facing[inner].mean() < 0.8
+    # nowhere face-on enough: every pixel starts from the full-resolution sweep
+    near_far = (0.8 * truth.min(), 1.2 * truth.max())
+    np.testing.assert_array_equal(
+        estimate_depth(views, 0, [1, 2, 3, 4], near_far,
+                       DenseConfig(coarse_factor=2, coarse_min_cosine=1.01)).depth_m,
+        estimate_depth(views, 0, [1, 2, 3, 4], near_far, DenseConfig()).depth_m)

@@ -124,6 +124,12 @@ class DenseConfig:
     pear and orange 0.83 -> 1.84 %, the banana -0.6 -> -3.3 %; README, Dense cloud): the
     refining sweeps at full resolution do not undo the large window's bias where the skin is
     too faint for their own windows."""
+    coarse_min_cosine: float = 0.0
+    """With ``coarse_factor`` above 1 and this above 0: the first sweep runs at both
+    resolutions, and a pixel starts from the coarse one's depth only where the surface that
+    depth implies faces the camera at least this much (the cosine between the plane fitted to
+    the enlarged coarse depths and the view ray, :func:`depth_normals`), else from the
+    full-resolution one's."""
     n_refine_hypotheses: int = 7
     """Depths tried per pixel in each refining sweep."""
     refine_span_planes: float = 0.5
@@ -574,6 +580,11 @@ def estimate_depth(views: list[View], ref_pos: int, sources: list[int],
         if cfg.coarse_factor > 1:
             inv, best_cost, at_end = _coarse_sweep(views, ref_pos, sources, ref, planes, cfg,
                                                    device)
+            if cfg.coarse_min_cosine > 0:
+                face_on = _facing(view, ref, inv, cfg.coarse_min_cosine)
+                full = _plane_sweep(ref, terms, planes, cfg)
+                inv, best_cost, at_end = (torch.where(face_on, a, b) for a, b in
+                                          zip((inv, best_cost, at_end), full, strict=True))
         else:
             inv, best_cost, at_end = _plane_sweep(ref, terms, planes, cfg)
         if cfg.refine_sweeps:
@@ -624,6 +635,20 @@ def _refine(ref: _Reference, terms, inv, step: float, cfg: DenseConfig):
         inv = _parabola_peak(cost, j, hyp.gather(0, j[None])[0], spacing)
         span = spacing
     return inv, best_cost
+
+
+def _facing(view: View, ref: _Reference, inv, min_cosine: float):
+    """(P,) bool: where the surface of the inverse depths ``inv`` over the reference crop
+    faces the camera with a cosine of at least ``min_cosine`` (:func:`depth_normals`)."""
+    import torch
+
+    depth = np.zeros(view.gray.shape, np.float32)
+    crop = inv.reshape(ref.shape).cpu().numpy()
+    depth[ref.y0:ref.y1, ref.x0:ref.x1] = np.where(crop > 0, 1.0 / np.maximum(crop, 1e-9), 0)
+    normals = depth_normals(view, depth)[ref.y0:ref.y1, ref.x0:ref.x1]
+    rays = ref.rays.T.reshape(*ref.shape, 3) @ invert_rigid(view.T_cam_from_world)[:3, :3].T
+    cosine = np.abs(np.sum(normals * rays, axis=-1)) / np.linalg.norm(rays, axis=-1)
+    return torch.from_numpy(cosine.reshape(-1) >= min_cosine).to(inv.device)
 
 
 def coarse_view(view: View, factor: int) -> View:
