@@ -385,3 +385,13 @@ def test_the_coarse_start_is_taken_only_where_the_surface_faces_the_camera(plane
         estimate_depth(views, 0, [1, 2, 3, 4], near_far,
                        DenseConfig(coarse_factor=2, coarse_min_cosine=1.01)).depth_m,
         estimate_depth(views, 0, [1, 2, 3, 4], near_far, DenseConfig()).depth_m)
+
+
+def test_a_coarse_factor_below_one_is_refused():
+    from volec.dense import plan_dense
+    from volec.errors import ConfigError
+
+    for bad in (DenseConfig(coarse_factor=0), DenseConfig(refine_span_planes=0.0)):
+        with pytest.raises(ConfigError, match="coarse_factor"):
+            plan_dense(None, None, np.zeros((0, 4, 4)), np.zeros(0, bool), np.zeros((0, 3)),
+                       bad)
