@@ -129,7 +129,10 @@ class DenseConfig:
     resolutions, and a pixel starts from the coarse one's depth only where the surface that
     depth implies faces the camera at least this much (the cosine between the plane fitted to
     the enlarged coarse depths and the view ray, :func:`depth_normals`), else from the
-    full-resolution one's."""
+    full-resolution one's. Off: at 2 and 0.75 the ten faint skins' default MAPE went from
+    1.61 to 1.40 % (p = 0.01) and their coverage up by 5 points, but the 21 full orbits'
+    from 1.08 to 1.09 % with a slightly worse surface, and dense stereo took 1.2-1.3 times as
+    long (README, Dense cloud)."""
     n_refine_hypotheses: int = 7
     """Depths tried per pixel in each refining sweep."""
     refine_span_planes: float = 0.5
