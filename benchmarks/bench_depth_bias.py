@@ -25,9 +25,8 @@ import argparse
 import cv2
 import numpy as np
 import pandas as pd
-from scipy import ndimage
 
-from volec.dense import depth_maps, depth_normals, plan_dense
+from volec.dense import _window_stats, depth_maps, plan_dense, surface_cosines
 from volec.estimate import EstimateConfig, with_settings
 from volec.experiments import map_items, scenario_capture, scenarios
 from volec.paths import experiment_dir, figures_dir
@@ -41,9 +40,11 @@ COSINE_BINS = (0.0, 0.5, 0.75, 0.9, 1.01)
 
 
 def _window_std(gray: np.ndarray, k: int = 7) -> np.ndarray:
-    mean = ndimage.uniform_filter(gray.astype(float), k, mode="nearest")
-    square = ndimage.uniform_filter(gray.astype(float) ** 2, k, mode="nearest")
-    return np.sqrt(np.clip(square - mean**2, 0, None))
+    """(H, W) intensity standard deviation of each pixel's k x k window, as dense stereo's
+    texture test computes it."""
+    import torch
+
+    return _window_stats(torch.from_numpy(np.ascontiguousarray(gray)), k)[1].numpy()
 
 
 def pixel_errors(item: str, scenario_name: str, settings: tuple[str, ...]) -> pd.DataFrame:
@@ -75,13 +76,7 @@ def pixel_errors(item: str, scenario_name: str, settings: tuple[str, ...]) -> pd
             food = cv2.resize(masks.mask(view.index).astype(np.float32), (w, h),
                               interpolation=cv2.INTER_AREA) >= 0.5
             food &= np.isfinite(exact_depth)
-            normals = depth_normals(view, np.where(np.isfinite(exact_depth), exact_depth, 0))
-            u, v = np.meshgrid(np.arange(w), np.arange(h))
-            rays = np.stack([(u - view.K[0, 2]) / view.K[0, 0],
-                             (v - view.K[1, 2]) / view.K[1, 1], np.ones((h, w))], -1)
-            rays = rays @ np.linalg.inv(view.T_cam_from_world)[:3, :3].T
-            rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
-            cosine = np.abs(np.einsum("hwk,hwk->hw", normals, rays))
+            cosine = surface_cosines(view, np.where(np.isfinite(exact_depth), exact_depth, 0))
             got = depth_map.depth_m
             rows.append(pd.DataFrame({
                 "item": item, "config": name, "texture": _window_std(view.gray)[food],

@@ -640,17 +640,27 @@ def _refine(ref: _Reference, terms, inv, step: float, cfg: DenseConfig):
     return inv, best_cost
 
 
+def surface_cosines(view: View, depth_m: np.ndarray) -> np.ndarray:
+    """(H, W) how directly ``view``'s camera sees the surface of the depth map ``depth_m``:
+    the absolute cosine between each pixel's ray and the plane fitted around its depth
+    (:func:`depth_normals`); 0 where no plane fits."""
+    h, w = depth_m.shape
+    u, v = np.meshgrid(np.arange(w), np.arange(h))
+    rays = np.stack([u, v, np.ones((h, w))], -1) @ np.linalg.inv(view.K).T
+    rays = rays @ invert_rigid(view.T_cam_from_world)[:3, :3].T
+    normals = depth_normals(view, depth_m)
+    return np.abs(np.sum(normals * rays, axis=-1)) / np.linalg.norm(rays, axis=-1)
+
+
 def _facing(view: View, ref: _Reference, inv, min_cosine: float):
     """(P,) bool: where the surface of the inverse depths ``inv`` over the reference crop
-    faces the camera with a cosine of at least ``min_cosine`` (:func:`depth_normals`)."""
+    faces the camera with a cosine of at least ``min_cosine`` (:func:`surface_cosines`)."""
     import torch
 
     depth = np.zeros(view.gray.shape, np.float32)
     crop = inv.reshape(ref.shape).cpu().numpy()
     depth[ref.y0:ref.y1, ref.x0:ref.x1] = np.where(crop > 0, 1.0 / np.maximum(crop, 1e-9), 0)
-    normals = depth_normals(view, depth)[ref.y0:ref.y1, ref.x0:ref.x1]
-    rays = ref.rays.T.reshape(*ref.shape, 3) @ invert_rigid(view.T_cam_from_world)[:3, :3].T
-    cosine = np.abs(np.sum(normals * rays, axis=-1)) / np.linalg.norm(rays, axis=-1)
+    cosine = surface_cosines(view, depth)[ref.y0:ref.y1, ref.x0:ref.x1]
     return torch.from_numpy(cosine.reshape(-1) >= min_cosine).to(inv.device)
 
 
