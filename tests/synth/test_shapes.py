@@ -1,7 +1,14 @@
 import numpy as np
 import pytest
 
-from volec.synth.shapes import ITEMS, item_mesh, item_names
+from volec.synth.shapes import (
+    FLAT_BASE_SETTLE_MM,
+    ITEMS,
+    flat_below,
+    item_mesh,
+    item_names,
+    mesh_field,
+)
 
 # Ground-truth volumes (mL) typed from the paper's Table I, independent of volec's own table.
 TABLE_I_ML = {
@@ -82,3 +89,36 @@ def test_meshes_are_deterministic_and_copies():
 def test_unknown_item_names_the_known_ones():
     with pytest.raises(KeyError, match="apple"):
         item_mesh("kiwi")
+
+
+def test_flat_below_cuts_a_spherical_cap_of_the_analytic_volume():
+    # A unit ball cut 0.4 above its lowest point loses a cap of pi h^2 (3 - h) / 3.
+    def ball(p):
+        return np.linalg.norm(p, axis=1) - 1.0
+
+    h = 0.4
+    mesh = mesh_field(flat_below(ball, -1.0 + h), 1.3, resolution=160)
+    assert mesh.is_watertight
+    expected = 4.0 / 3.0 * np.pi - np.pi * h**2 * (3.0 - h) / 3.0
+    assert mesh.volume == pytest.approx(expected, rel=5e-3)
+    bottom = mesh.vertices[:, 2].min()
+    assert bottom == pytest.approx(-1.0 + h, abs=1e-9)  # the cut face is the plane itself
+
+
+def underside_contact_share(mesh, step_m=0.5e-3, touch_m=0.2e-3) -> float:
+    """Share of the footprint (rays straight up from under the plate that hit the item) whose
+    first hit lies within ``touch_m`` of the plate."""
+    lo, hi = mesh.bounds
+    x, y = np.meshgrid(np.arange(lo[0], hi[0], step_m), np.arange(lo[1], hi[1], step_m))
+    origins = np.stack([x.ravel(), y.ravel(), np.full(x.size, -0.01)], axis=1)
+    up = np.tile([0.0, 0.0, 1.0], (len(origins), 1))
+    hits, _, _ = mesh.ray.intersects_location(origins, up, multiple_hits=False)
+    return float(np.mean(hits[:, 2] < touch_m))
+
+
+def test_flat_based_items_rest_on_their_base_and_fruit_on_a_point():
+    assert ITEMS["apple_pie"].settle_mm == FLAT_BASE_SETTLE_MM > 0
+    assert ITEMS["apple"].settle_mm == 0
+    assert underside_contact_share(item_mesh("apple_pie")) > 0.9
+    assert underside_contact_share(item_mesh("chocolate_cake")) > 0.9
+    assert underside_contact_share(item_mesh("apple")) < 0.1
