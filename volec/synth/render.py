@@ -18,6 +18,7 @@ needed; results are deterministic.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import trimesh
@@ -95,7 +96,25 @@ class Renderer:
         self.scene = scene
         self.mesh: trimesh.Trimesh = scene.mesh
         self._rays = RayMeshIntersector(self.mesh)
-        self._vertex_normals = np.asarray(self.mesh.vertex_normals)
+        # Plain numpy copies: trimesh's arrays hash themselves on every access to check
+        # their caches (about 2 % of a frame's time).
+        self._faces = np.array(self.mesh.faces)
+        self._vertices = np.array(self.mesh.vertices)
+        self._face_normals = np.array(self.mesh.face_normals)
+        self._vertex_normals = np.array(self.mesh.vertex_normals)
+        self._face_label = np.asarray(scene.face_label)
+        # Per-face tables, so that a frame gathers by triangle rather than by vertex. The
+        # barycentric set-up depends on the triangle alone; einsum gives every row the same
+        # bits whatever the other rows of its array, so computing it once here changes
+        # nothing.
+        self._triangle_frames = _triangle_frames(self._vertices[self._faces])
+        self._first_corner = self._triangle_frames[0]
+        self._corner_normals = self._vertex_normals[self._faces]
+        # The intersector's embree scene, queried directly (see _embree_origins); its
+        # vertices are shifted and scaled to about a unit cube for precision.
+        self._embree = self._rays._scene
+        self._sun = _embree_directions(SUN_DIRECTION[None])
+        self._discs: dict[tuple[int, float], np.ndarray] = {}
 
     def render(
         self, K: np.ndarray, width: int, height: int, T_scene_from_cam: np.ndarray,
@@ -140,22 +159,25 @@ class Renderer:
         ``grid`` (H, W): ``pix`` is every pixel centre, row by row; else they are the n x n
         sub-pixel positions of some pixels, pixel by pixel."""
         origin, dirs = self._camera_rays(K, T_scene_from_cam, pix)
-        tri = self._rays.intersects_first(np.broadcast_to(origin, dirs.shape), dirs)
-        hit = tri >= 0
+        tri = self._first_hits(origin, dirs)
+        # Index arrays and np.take rather than boolean masks: the same values, gathered
+        # several times faster.
+        hit = np.flatnonzero(tri >= 0)
         n = len(dirs)
         rgb = np.tile(BACKGROUND, (n, 1))
         label = np.full(n, -1, dtype=np.int8)
         depth = np.full(n, np.inf)
         shadow = np.zeros(n, bool)
-        if hit.any():
-            points, normals = self._surface(tri[hit], origin, dirs[hit])
-            lab = self.scene.face_label[tri[hit]]
+        if len(hit):
+            points, normals, lab = self._surface(tri.take(hit), origin, dirs.take(hit, axis=0))
             albedo = np.empty((len(points), 3))
             for obj in np.unique(lab):
-                sel = lab == obj
-                albedo[sel] = self.scene.colour(int(obj), points[sel], normals[sel])
-            lit = self._light(points, normals, hit, look, grid)
-            cos_sun = np.clip(np.einsum("ij,j->i", normals, SUN_DIRECTION), 0.0, None)
+                sel = np.flatnonzero(lab == obj)
+                albedo[sel] = self.scene.colour(int(obj), points.take(sel, axis=0),
+                                                normals.take(sel, axis=0))
+            cos_sun = np.einsum("ij,j->i", normals, SUN_DIRECTION)
+            lit = self._light(points, normals, cos_sun > 0, hit, look, grid)
+            cos_sun = np.clip(cos_sun, 0.0, None)
             setup = self.scene.setup
             sky = SKY_STRENGTH * (0.75 + 0.25 * normals[:, 2])
             rgb[hit] = setup.light * albedo * (sky + setup.sun * SUN_STRENGTH * cos_sun
@@ -191,88 +213,125 @@ class Renderer:
         sensor would see."""
         u, v = np.meshgrid(np.arange(width, dtype=float), np.arange(height, dtype=float))
         origin, dirs = self._camera_rays(K, T_scene_from_cam, np.stack([u.ravel(), v.ravel()], 1))
-        tri = self._rays.intersects_first(np.broadcast_to(origin, dirs.shape), dirs)
-        hit = tri >= 0
+        tri = self._first_hits(origin, dirs)
+        hit = np.flatnonzero(tri >= 0)
         depth = np.full(len(dirs), np.inf)
         label = np.full(len(dirs), -1, dtype=np.int8)
-        if hit.any():
-            points, _ = self._surface(tri[hit], origin, dirs[hit])
+        if len(hit):
+            points, _, label[hit] = self._surface(tri.take(hit), origin,
+                                                  dirs.take(hit, axis=0))
             depth[hit] = np.einsum("ij,j->i", points - origin, T_scene_from_cam[:3, 2])
-            label[hit] = self.scene.face_label[tri[hit]]
         return depth.reshape(height, width), label.reshape(height, width)
 
     def _surface(
         self, tri: np.ndarray, origin: np.ndarray, dirs: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Exact hit points (float64 ray-plane intersection) and shading normals.
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Exact hit points (float64 ray-plane intersection), shading normals and object
+        labels of the rays ``dirs`` from ``origin`` that hit triangles ``tri``.
 
         Normals are interpolated from the vertices on the food only; table and plate are
         flat, so their face normals are exact there.
         """
-        faces = self.mesh.faces[tri]
-        v0 = self.mesh.vertices[faces[:, 0]]
-        face_n = self.mesh.face_normals[tri]
+        v0 = self._first_corner.take(tri, axis=0)
+        face_n = self._face_normals.take(tri, axis=0)
         t = np.einsum("ij,ij->i", v0 - origin, face_n) / np.einsum("ij,ij->i", dirs, face_n)
         points = origin + dirs * t[:, None]
         normals = face_n.copy()
-        smooth = self.scene.face_label[tri] == FOOD
-        if smooth.any():
-            corners = self.mesh.vertices[faces[smooth]]
-            bary = _barycentric(corners, points[smooth])
-            vn = self._vertex_normals[faces[smooth]]
+        labels = self._face_label.take(tri)
+        smooth = np.flatnonzero(labels == FOOD)
+        if len(smooth):
+            on_food = tri.take(smooth)
+            frames = tuple(a.take(on_food, axis=0) for a in self._triangle_frames)
+            bary = _barycentric_in(frames, points.take(smooth, axis=0))
+            vn = self._corner_normals.take(on_food, axis=0)
             ns = np.einsum("ij,ijk->ik", np.clip(bary, 0, 1), vn)
             normals[smooth] = ns / np.linalg.norm(ns, axis=1, keepdims=True)
         # Face the camera: a grazing interpolated normal, or a back face, may point away.
-        away = np.einsum("ij,ij->i", normals, dirs) > 0
-        if away.any():
-            fn = face_n[away]
-            sign = np.where(np.einsum("ij,ij->i", fn, dirs[away]) > 0, -1.0, 1.0)
+        away = np.flatnonzero(np.einsum("ij,ij->i", normals, dirs) > 0)
+        if len(away):
+            fn = face_n.take(away, axis=0)
+            sign = np.where(np.einsum("ij,ij->i", fn, dirs.take(away, axis=0)) > 0, -1.0, 1.0)
             normals[away] = fn * sign[:, None]
-        return points, normals
+        return points, normals, labels
 
-    def _visible(self, points: np.ndarray, normals: np.ndarray, direction: np.ndarray
-                 ) -> np.ndarray:
-        """(N,) True where the light in ``direction`` (one (3,) or (N, 3)) is unblocked."""
-        start = points + normals * 2e-4
-        direction = np.broadcast_to(direction, start.shape)
-        return ~self._rays.intersects_any(start, direction)
+    def _first_hits(self, origin: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+        """(N,) index of the first triangle each ray from ``origin`` (3,) along ``dirs``
+        (N, 3) hits, -1 for none: ``RayMeshIntersector.intersects_first``'s answer, with the
+        shared origin converted once."""
+        start = _embree_origins(self._embree, origin[None])
+        return self._embree.scene.run(np.broadcast_to(start, dirs.shape),
+                                      _embree_directions(dirs))
 
-    def _light(self, points: np.ndarray, normals: np.ndarray, hit: np.ndarray,
-               look: LookConfig, grid: tuple[int, int] | None) -> np.ndarray:
+    def _hidden(self, start: np.ndarray, direction: np.ndarray) -> np.ndarray:
+        """(N,) True where a ray from ``start`` (N, 3) along ``direction`` ((1, 3) or
+        (N, 3)), both in embree's frame (:func:`_embree_origins`,
+        :func:`_embree_directions`), hits anything: an occlusion query, which stops at the
+        first hit found rather than the nearest (the same triangle test, so the same
+        answer as ``intersects_any``)."""
+        return self._embree.scene.run(start, direction, query="OCCLUDED") == 0
+
+    def _light_disc(self, n: int, radius_deg: float) -> np.ndarray:
+        """:func:`light_directions` in embree's form (float32, as trimesh normalises
+        them), computed once per look."""
+        key = (n, radius_deg)
+        if key not in self._discs:
+            self._discs[key] = _embree_directions(light_directions(n, radius_deg))
+        return self._discs[key]
+
+    def _light(self, points: np.ndarray, normals: np.ndarray, facing: np.ndarray,
+               hit: np.ndarray, look: LookConfig, grid: tuple[int, int] | None
+               ) -> np.ndarray:
         """The share of the light (a disc of ``look.light_radius_deg``; a point when 0) that
         each hit point sees: hard visibility from the disc's centre, refined by
         ``shadow_rays`` rays where it changes nearby (grid pass), or one disc sample per
-        sub-pixel ray, stratified over each pixel's n x n rays (edge pass)."""
+        sub-pixel ray, stratified over each pixel's n x n rays (edge pass). ``facing``:
+        (N,) whether each normal faces the light; ``hit``: the rays' indices (N,) among all
+        rays of the pass."""
         lit = np.zeros(len(points))
-        facing = np.einsum("ij,j->i", normals, SUN_DIRECTION) > 0
-        if not facing.any():
+        facing = np.flatnonzero(facing)
+        if not len(facing):
             return lit
+        # The shadow rays' origins, converted once for all the rays from each point.
+        start = _embree_origins(self._embree, points[facing] + normals[facing] * 2e-4)
         if look.light_radius_deg <= 0:
-            lit[facing] = self._visible(points[facing], normals[facing], SUN_DIRECTION)
+            lit[facing] = ~self._hidden(start, self._sun)
             return lit
         if grid is None:  # sub-pixel rays: the k-th ray of a pixel samples the k-th stratum
             n2 = look.edge_samples**2
-            disc = light_directions(n2, look.light_radius_deg)
-            k = np.flatnonzero(hit) % n2
-            idx = np.flatnonzero(facing)
-            lit[idx] = self._visible(points[idx], normals[idx], disc[k[idx]])
+            disc = self._light_disc(n2, look.light_radius_deg)
+            k = hit[facing] % n2
+            lit[facing] = ~self._hidden(start, disc[k])
             return lit
-        lit[facing] = self._visible(points[facing], normals[facing], SUN_DIRECTION)
+        lit[facing] = ~self._hidden(start, self._sun)
         hard = np.full(grid[0] * grid[1], np.nan)
-        hard[np.flatnonzero(hit)] = lit
+        hard[hit] = lit
         image = hard.reshape(grid)
         lit_pix = np.nan_to_num(image, nan=0.0) > 0.5
         changes = lit_pix ^ ndimage.binary_erosion(lit_pix, border_value=1)
         changes |= ~lit_pix ^ ndimage.binary_erosion(~lit_pix, border_value=1)
         near = ndimage.binary_dilation(changes, iterations=look.penumbra_px).ravel()
-        soft = np.flatnonzero(near[np.flatnonzero(hit)] & facing)
+        soft = np.flatnonzero(near[hit[facing]])  # positions among the facing points
         if len(soft):
-            disc = light_directions(look.shadow_rays, look.light_radius_deg)
+            disc = self._light_disc(look.shadow_rays, look.light_radius_deg)
+            soft_start = start[soft]
             seen = np.zeros(len(soft))
             for direction in disc:
-                seen += self._visible(points[soft], normals[soft], direction)
-            lit[soft] = seen / len(disc)
+                seen += ~self._hidden(soft_start, direction[None])
+            lit[facing[soft]] = seen / len(disc)
         return lit
+
+def _embree_origins(embree: Any, points: np.ndarray) -> np.ndarray:
+    """``points`` (N, 3) in the frame of trimesh's embree scene ``embree``, float32, rounded
+    as ``RayMeshIntersector.intersects_first`` rounds them (to float32 first, then shifted
+    and scaled in float64): the same rays give the same triangles, bit for bit."""
+    scaled = np.asarray(points, np.float32).astype(np.float64)
+    return ((scaled - embree.origin) * embree.scale).astype(np.float32)
+
+
+def _embree_directions(dirs: np.ndarray) -> np.ndarray:
+    """Unit directions ``dirs`` (N, 3) as ``intersects_first`` hands them to embree:
+    rounded to float32, normalised again by ``trimesh.util.unitize``, rounded again."""
+    return trimesh.util.unitize(np.asarray(dirs, np.float32)).astype(np.float32)
 
 
 def light_directions(n: int, radius_deg: float) -> np.ndarray:
@@ -313,22 +372,30 @@ def _largest_channel(rgb: np.ndarray) -> np.ndarray:
     return np.maximum(np.maximum(rgb[..., 0], rgb[..., 1]), rgb[..., 2])
 
 
-def _barycentric(corners: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Barycentric coordinates (M, 3) of ``points`` in triangles ``corners`` (M, 3, 3).
+def _triangle_frames(corners: np.ndarray) -> tuple[np.ndarray, ...]:
+    """What :func:`_barycentric_in` needs of triangles ``corners`` (M, 3, 3): the first
+    corner, the two edges from it, their dot products and the determinant (M,)."""
+    e1 = corners[:, 1] - corners[:, 0]
+    e2 = corners[:, 2] - corners[:, 0]
+    d11 = np.einsum("ij,ij->i", e1, e1)
+    d12 = np.einsum("ij,ij->i", e1, e2)
+    d22 = np.einsum("ij,ij->i", e2, e2)
+    denom = d11 * d22 - d12 * d12
+    denom[denom == 0] = 1e-30
+    return np.ascontiguousarray(corners[:, 0]), e1, e2, d11, d12, d22, denom
+
+
+def _barycentric_in(frames: tuple[np.ndarray, ...], points: np.ndarray) -> np.ndarray:
+    """Barycentric coordinates (M, 3) of ``points`` in the triangles of ``frames``
+    (:func:`_triangle_frames`).
 
     Written with einsum rather than trimesh's helper, which calls BLAS: BLAS threads in
     parallel render workers on a 2-core machine cost about a third of the speed.
     """
-    e1 = corners[:, 1] - corners[:, 0]
-    e2 = corners[:, 2] - corners[:, 0]
-    d = points - corners[:, 0]
-    d11 = np.einsum("ij,ij->i", e1, e1)
-    d12 = np.einsum("ij,ij->i", e1, e2)
-    d22 = np.einsum("ij,ij->i", e2, e2)
+    c0, e1, e2, d11, d12, d22, denom = frames
+    d = points - c0
     dp1 = np.einsum("ij,ij->i", d, e1)
     dp2 = np.einsum("ij,ij->i", d, e2)
-    denom = d11 * d22 - d12 * d12
-    denom[denom == 0] = 1e-30
     b1 = (d22 * dp1 - d12 * dp2) / denom
     b2 = (d11 * dp2 - d12 * dp1) / denom
     return np.stack([1.0 - b1 - b2, b1, b2], axis=1)
