@@ -28,7 +28,7 @@ class SolidNoise:
         # einsum, not @: a BLAS call here would start threads that fight the worker processes.
         q = np.einsum("ij,kj->ik", np.asarray(points, float), self._rotations[octave % 8])
         q *= frequency
-        q = q + self._offsets[octave % 8]
+        q += self._offsets[octave % 8]
         return map_coordinates(self.lattice, q.T, order=1, mode="grid-wrap")
 
     def fractal(
