@@ -3,16 +3,17 @@
 Usage: .venv/bin/python benchmarks/bench_contact_gap.py [--scenarios full_orbit ...]
        [--items apple orange ...] [--workers 2] [--set section.field=value ...]
 
-A benchmark item rests on its lowest point; where its underside is not flat, a thin gap lies
-between it and the plate. Near the footprint's edge a camera's grazing ray can slip into the
-gap and see the plate through it; farther in, a ray from the lowest camera of the capture
-would have to fall more than the gap is high (:func:`volec.metrics.hidden_columns`), so
-nothing tells that space from food. On the stages of the volume benchmark (reused when the
-current code made them), the default estimate is made once and its mesh rigidly aligned to
-the ground truth by the masked cloud (read only to score). Per item: the volume error, the
-truth's whole gap under it and the hidden part of it (% of the true volume), the part of the
-hidden gap the estimate fills, and the error with that part taken off. Written to
-figures/contact_gap_SCENARIO.{csv,md}.
+A benchmark item rests on its lowest point (the eight with a flat base settle 2 mm onto the
+plate first: :data:`volec.synth.shapes.FLAT_BASE_SETTLE_MM`); where its underside is not
+flat, a thin gap lies between it and the plate. Near the footprint's edge a camera's grazing
+ray can slip into the gap and see the plate through it; farther in, a ray from the lowest
+camera of the capture would have to fall more than the gap is high
+(:func:`volec.metrics.hidden_columns`), so nothing tells that space from food. On the stages
+of the volume benchmark (reused when the current code made them), the default estimate is
+made once and its mesh rigidly aligned to the ground truth by the masked cloud (read only to
+score). Per item: the volume error, the truth's whole gap under it and the hidden part of it
+(% of the true volume), the part of the hidden gap the estimate fills, and the error with
+that part taken off. Written to figures/contact_gap_SCENARIO.{csv,md}.
 """
 
 from __future__ import annotations
