@@ -7,7 +7,8 @@ on the plane z = 0 (z up), centred over the origin, scaled so its exact volume i
 Each shape is an implicit function (negative inside) built from a few primitives with smooth
 blends, perturbed by seeded solid noise so that no item is perfectly symmetric, and meshed by
 marching cubes (scikit-image). The volume of the mesh itself is the ground truth: scaling by
-``(target / volume) ** (1/3)`` makes it exact.
+``(target / volume) ** (1/3)`` makes it exact. Items whose shape has a flat base settle onto it
+(:attr:`ItemSpec.settle_mm`); the others rest on their lowest point.
 """
 
 from __future__ import annotations
