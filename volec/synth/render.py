@@ -328,6 +328,7 @@ class Renderer:
             lit[facing[soft]] = seen / len(disc)
         return lit
 
+
 def _embree_origins(embree: Any, points: np.ndarray) -> np.ndarray:
     """``points`` (N, 3) in the frame of trimesh's embree scene ``embree``, float32, rounded
     as ``RayMeshIntersector.intersects_first`` rounds them (to float32 first, then shifted
