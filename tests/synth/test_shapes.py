@@ -1,6 +1,7 @@
 import numpy as np
 import pytest
 
+from volec.metrics import bottom_gap
 from volec.synth.shapes import (
     FLAT_BASE_SETTLE_MM,
     ITEMS,
@@ -105,15 +106,11 @@ def test_flat_below_cuts_a_spherical_cap_of_the_analytic_volume():
     assert bottom == pytest.approx(-1.0 + h, abs=1e-9)  # the cut face is the plane itself
 
 
-def underside_contact_share(mesh, step_m=0.5e-3, touch_m=0.2e-3) -> float:
-    """Share of the footprint (rays straight up from under the plate that hit the item) whose
-    first hit lies within ``touch_m`` of the plate."""
-    lo, hi = mesh.bounds
-    x, y = np.meshgrid(np.arange(lo[0], hi[0], step_m), np.arange(lo[1], hi[1], step_m))
-    origins = np.stack([x.ravel(), y.ravel(), np.full(x.size, -0.01)], axis=1)
-    up = np.tile([0.0, 0.0, 1.0], (len(origins), 1))
-    hits, _, _ = mesh.ray.intersects_location(origins, up, multiple_hits=False)
-    return float(np.mean(hits[:, 2] < touch_m))
+def underside_contact_share(mesh, touch_m=0.2e-3) -> float:
+    """Share of the footprint whose underside lies within ``touch_m`` of the plate (columns
+    of :func:`volec.metrics.bottom_gap`, rays straight up from under the plate)."""
+    _, gap_m, _ = bottom_gap(mesh, up=np.array([0.0, 0.0, 1.0]))
+    return float(np.mean(gap_m < touch_m))
 
 
 def test_flat_based_items_rest_on_their_base_and_fruit_on_a_point():
