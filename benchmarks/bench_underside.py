@@ -48,7 +48,7 @@ def underside_row(item: str, scenario_name: str, settings: tuple[str, ...] = ()
             "default_err_pct": 100 * (with_it.food.volume_ml / bench.truth_ml - 1),
             "mirror_height_mm": record.get("mirror_height_mm"),
             "reflected_median_mm": record.get("reflected_median_distance_mm"),
-            "symmetric": record.get("symmetric"),
+            "symmetric": record.get("symmetric"), "squash": record.get("squash"),
             "kept": record.get("kept", 0), "seconds": record.get("seconds")}
 
 

@@ -7,7 +7,7 @@ from tests.test_meshing import _sphere_on_table
 from tests.test_rims import _seen_from_above
 from volec.meshing import SupportPlane
 from volec.pointcloud import PointCloud
-from volec.space import EMPTY, FOOD, SpaceGrid, observed_space
+from volec.space import EMPTY, FOOD, UNKNOWN, SpaceGrid, observed_space
 from volec.underside import UndersideConfig, facing_out, fit_level, underside_points
 
 UP = np.array([0.0, 0.0, 1.0])
@@ -80,3 +80,66 @@ def test_only_surface_facing_away_from_the_vertical_axis_bounds_the_wedge():
                         [0.0, 0.2, -0.98]])  # nearly straight down: too little out
     np.testing.assert_array_equal(facing_out(points, normals, centre, UP, 0.3),
                                   [True, True, False, False])
+
+
+def _lens(r: float, top_m: float, bottom_m: float, seen_down_to: float
+          ) -> tuple[PointCloud, SupportPlane, SpaceGrid, callable]:
+    """A lens resting on its lowest point on the table z = 0: horizontal radius ``r``, its
+    upper half an ellipsoid's ``top_m`` high, its lower half ``bottom_m`` deep (the upper one
+    squashed). Its surface seen (outward normals) down to ``seen_down_to`` of the lower half's
+    depth below the widest level; a space where nothing below that was seen (unknown), food
+    inside, empty elsewhere; and the lens's implicit function (negative inside, about metres
+    near the surface)."""
+    centre = np.array([0.0, 0.0, bottom_m])
+    d = np.random.default_rng(6).normal(size=(40000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    depth = np.where(d[:, 2] > 0, top_m, bottom_m)
+    axes = np.stack([np.full(len(d), r), np.full(len(d), r), depth], axis=1)
+    normals = d / axes
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    seen = d[:, 2] > -seen_down_to
+    cloud = PointCloud(centre + (axes * d)[seen], None, normals[seen])
+
+    def inside(p: np.ndarray) -> np.ndarray:
+        q = p - centre
+        c = np.where(q[:, 2] > 0, top_m, bottom_m)
+        return bottom_m * (np.sqrt((q[:, 0] / r) ** 2 + (q[:, 1] / r) ** 2 + (q[:, 2] / c) ** 2)
+                           - 1.0)
+
+    pitch = 0.001
+    lower = np.array([-1.3 * r, -1.3 * r, 0.0])
+    axes_m = [lower[i] + pitch * np.arange(int(2.6 * r / pitch) + 1) for i in range(2)]
+    axes_m.append(pitch * np.arange(int((bottom_m + top_m) * 1.2 / pitch) + 1))
+    grid = np.stack(np.meshgrid(*axes_m, indexing="ij"), axis=-1).reshape(-1, 3)
+    state = np.where(inside(grid) < 0, FOOD, EMPTY).astype(np.int8)
+    lowest_seen = bottom_m * (1.0 - seen_down_to)
+    rim_reach = r * np.sqrt(1.0 - seen_down_to ** 2)
+    wedge = (grid[:, 2] < lowest_seen) & (np.linalg.norm(grid[:, :2], axis=1) < rim_reach + pitch)
+    state[wedge] = UNKNOWN
+    shape = tuple(len(a) for a in axes_m)
+    return (cloud, SupportPlane((0.0, 0.0, 1.0), 0.0, 1000, 0.0),
+            SpaceGrid(lower, pitch, state.reshape(shape)), inside)
+
+
+def test_a_lens_flatter_below_rests_on_the_squashed_reflection_of_its_top():
+    # an empanadilla's lens: the lower half 0.7 of the upper's depth. Reflected plainly at its
+    # widest level, the top would reach 3.6 mm below the plate; cut there it lays a flat disc
+    # over the plate, outside the lens. Squashed to rest on the plate, it is the lower half.
+    top_m, bottom_m = 0.012, 0.0084
+    cloud, table, space, inside = _lens(0.03, top_m, bottom_m, 0.5)
+    points, record = underside_points(cloud, table, space, UndersideConfig())
+    assert record["symmetric"] and len(points) > 100
+    assert abs(record["squash"] - bottom_m / top_m) < 0.05
+    assert abs(record["mirror_height_mm"] - 1000 * bottom_m) < 0.5
+    assert np.median(np.abs(inside(points.xyz))) < 0.0001
+    plain, plain_record = underside_points(cloud, table, space,
+                                           UndersideConfig(rest_on_plate=False))
+    assert plain_record["squash"] == 1.0
+    assert np.median(inside(plain.xyz)) > 0.0004  # the cut reflection lies outside the lens
+
+
+def test_a_symmetric_item_is_reflected_plainly():
+    # a sphere's mirror lands its top on the plate: nothing to squash
+    _, cloud, table, _, space = _seen_from_above(0.03)
+    _, record = underside_points(cloud, table, space, UndersideConfig())
+    assert record["symmetric"] and abs(record["squash"] - 1.0) < 0.03

@@ -19,8 +19,13 @@ the rotation baseline searches its axis (:mod:`volec.completion.rotation`): the 
 candidate level is reflected below it and scored by its truncated distance to the cloud where
 it lands in space the cameras saw, the lower part that stereo and the rim points did reach.
 That lays the reflected top on the seen bottom, which is what is extended into the wedge (an
-item whose bottom is fuller than its top gets a lower level). A cloud that half its reflected
-points do not meet within ``max_median_distance_m`` is not symmetric and gets nothing.
+item whose bottom is fuller than its top gets a lower level). Food rests on its lowest point,
+so a reflection that would reach below the plate (the food more than twice the level high) is
+compressed vertically about the level until its lowest point rests on the plate: a lower part
+flatter than the upper one, as under a pasty or a bun, is the upper one squashed. Cut by the
+plate instead, the plain reflection would lay a flat disc under a dome-topped item. A cloud
+that half its reflected points do not meet within ``max_median_distance_m`` is not symmetric
+and gets nothing.
 Otherwise only what lands in unknown space, above the plate, away from the measured points, is
 kept, as a prior's points (the meshing's checks drop them where the masks or the enclosed
 space disagree), and only where its normal faces away from the item's vertical axis: a hollow
@@ -59,6 +64,12 @@ class UndersideConfig:
     wall's foot onto itself whatever the rest)."""
     lowest_share: float = 0.4
     highest_share: float = 0.6
+    rest_on_plate: bool = True
+    """Where the part above a level, reflected, would reach below the plate (the food's top
+    more than twice the level high), compress the reflection vertically about the level so
+    that its lowest point rests on the plate: food rests on its lowest point, and a lower part
+    flatter than the upper (a pasty's, a bun's) is the upper one squashed. False: the plain
+    reflection, cut by the plate, which lays a flat disc under a dome-topped item."""
     fit_points: int = 3000
     """Points of the cloud that score a candidate level."""
     inlier_spacings: float = 4.0
@@ -97,6 +108,9 @@ class LevelFit:
     """Median distance to the cloud of the sample points from above the level that land,
     reflected, in seen space below it (truncated at the score's reach)."""
     symmetric: bool
+    squash: float = 1.0
+    """The reflection's vertical scale below the level (1: a plain mirror; less where the
+    food rests on the plate, :attr:`UndersideConfig.rest_on_plate`)."""
 
     def record(self) -> dict[str, Any]:
         """JSON-able form."""
@@ -104,14 +118,34 @@ class LevelFit:
         return {"mirror_height_mm": round(1000 * self.height_m, 2) if finite else None,
                 "reflected_median_distance_mm":
                     round(1000 * self.median_distance_m, 3) if finite else None,
-                "symmetric": self.symmetric}
+                "symmetric": self.symmetric, "squash": round(self.squash, 4)}
 
 
-def reflected(xyz: np.ndarray, height_m: np.ndarray, level_m: float, up: np.ndarray
-              ) -> np.ndarray:
+def reflected(xyz: np.ndarray, height_m: np.ndarray, level_m: float, up: np.ndarray,
+              squash: float = 1.0) -> np.ndarray:
     """``xyz`` (N, 3), at ``height_m`` (N,) above the plate, reflected in the horizontal plane
-    ``level_m`` above it (``up`` its unit normal)."""
-    return xyz + np.outer(2.0 * (level_m - height_m), up)
+    ``level_m`` above it (``up`` its unit normal), the reflection's distances below that plane
+    scaled by ``squash``."""
+    return xyz + np.outer((level_m - height_m) * (1.0 + squash), up)
+
+
+def reflected_normals(normals: np.ndarray, up: np.ndarray, squash: float = 1.0) -> np.ndarray:
+    """Unit ``normals`` (N, 3) of a surface reflected by :func:`reflected` with ``squash``: a
+    vertical scale by ``-squash`` maps a normal's vertical part by ``-1 / squash``."""
+    along = normals @ up
+    if squash == 1.0:
+        return normals - 2.0 * np.outer(along, up)
+    out = normals - np.outer(along * (1.0 + 1.0 / squash), up)
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def resting_squash(level_m: float, top_m: float, cfg: UndersideConfig) -> float:
+    """The vertical scale that lays the reflection at ``level_m`` of food ``top_m`` high onto
+    the plate (at most 1: a reflection that stays above the plate is left as it is; 1 without
+    ``cfg.rest_on_plate``)."""
+    if not cfg.rest_on_plate or top_m <= 2.0 * level_m:
+        return 1.0
+    return level_m / (top_m - level_m)
 
 
 def fit_level(xyz: np.ndarray, normals: np.ndarray, height_m: np.ndarray, up: np.ndarray,
@@ -138,8 +172,10 @@ def fit_level(xyz: np.ndarray, normals: np.ndarray, height_m: np.ndarray, up: np
 
     def score(level: float) -> tuple[float, float]:
         upper = sample_h > level
-        moved = reflected(sample[upper], sample_h[upper], level, up)
-        moved_h = 2.0 * level - sample_h[upper]
+        squash = resting_squash(level, top, cfg)
+        moved = reflected(sample[upper], sample_h[upper], level, up, squash)
+        moved_h = (2.0 * level - sample_h[upper] if squash == 1.0
+                   else level - (sample_h[upper] - level) * squash)
         checked = (moved_h > 0) & (space.states_at(moved) != UNKNOWN)
         if checked.sum() < max(cfg.min_checked_share * upper.sum(), cfg.min_checked_points):
             return np.inf, np.inf
@@ -172,7 +208,8 @@ def fit_level(xyz: np.ndarray, normals: np.ndarray, height_m: np.ndarray, up: np
     _, median, level = best
     symmetric = bool(np.isfinite(level) and median <= cfg.max_median_distance_m
                      and median < radius)
-    return LevelFit(level, median, symmetric)
+    squash = resting_squash(level, top, cfg) if np.isfinite(level) else 1.0
+    return LevelFit(level, median, symmetric, squash)
 
 
 def facing_out(points: np.ndarray, normals: np.ndarray, centre: np.ndarray, up: np.ndarray,
@@ -204,8 +241,8 @@ def underside_points(observed: PointCloud, support: SupportPlane, space: SpaceGr
     normals = np.zeros((0, 3))
     if fit.symmetric:
         upper = height > fit.height_m
-        points = reflected(observed.xyz[upper], height[upper], fit.height_m, up)
-        normals = observed.normals[upper] - 2.0 * np.outer(observed.normals[upper] @ up, up)
+        points = reflected(observed.xyz[upper], height[upper], fit.height_m, up, fit.squash)
+        normals = reflected_normals(observed.normals[upper], up, fit.squash)
         keep = ((support.height_m(points) > 0) & (space.states_at(points) == UNKNOWN)
                 & facing_out(points, normals, observed.xyz.mean(axis=0), up,
                              cfg.min_facing_out))
