@@ -1,6 +1,8 @@
 """The underside by a horizontal mirror: the food's upper part reflected into the wedge above the
 plate that no camera constrained."""
 
+from collections.abc import Callable
+
 import numpy as np
 
 from tests.test_meshing import _sphere_on_table
@@ -83,13 +85,13 @@ def test_only_surface_facing_away_from_the_vertical_axis_bounds_the_wedge():
 
 
 def _lens(r: float, top_m: float, bottom_m: float, seen_down_to: float
-          ) -> tuple[PointCloud, SupportPlane, SpaceGrid, callable]:
+          ) -> tuple[PointCloud, SupportPlane, SpaceGrid, Callable[[np.ndarray], np.ndarray]]:
     """A lens resting on its lowest point on the table z = 0: horizontal radius ``r``, its
     upper half an ellipsoid's ``top_m`` high, its lower half ``bottom_m`` deep (the upper one
     squashed). Its surface seen (outward normals) down to ``seen_down_to`` of the lower half's
     depth below the widest level; a space where nothing below that was seen (unknown), food
-    inside, empty elsewhere; and the lens's implicit function (negative inside, about metres
-    near the surface)."""
+    inside, empty elsewhere; and the lens's implicit function (negative inside, scaled to about
+    metres near its lower surface)."""
     centre = np.array([0.0, 0.0, bottom_m])
     d = np.random.default_rng(6).normal(size=(40000, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
