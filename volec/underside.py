@@ -133,7 +133,7 @@ def reflected_normals(normals: np.ndarray, up: np.ndarray, squash: float = 1.0) 
     """Unit ``normals`` (N, 3) of a surface reflected by :func:`reflected` with ``squash``: a
     vertical scale by ``-squash`` maps a normal's vertical part by ``-1 / squash``."""
     along = normals @ up
-    if squash == 1.0:
+    if squash == 1.0:  # a plain mirror keeps unit length: no renormalising, same bits
         return normals - 2.0 * np.outer(along, up)
     out = normals - np.outer(along * (1.0 + 1.0 / squash), up)
     return out / np.linalg.norm(out, axis=1, keepdims=True)
@@ -174,6 +174,7 @@ def fit_level(xyz: np.ndarray, normals: np.ndarray, height_m: np.ndarray, up: np
         upper = sample_h > level
         squash = resting_squash(level, top, cfg)
         moved = reflected(sample[upper], sample_h[upper], level, up, squash)
+        # the plain mirror keeps its own arithmetic, so its levels come out bit for bit
         moved_h = (2.0 * level - sample_h[upper] if squash == 1.0
                    else level - (sample_h[upper] - level) * squash)
         checked = (moved_h > 0) & (space.states_at(moved) != UNKNOWN)
