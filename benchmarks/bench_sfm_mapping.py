@@ -35,6 +35,8 @@ VARIANTS: dict[str, SfmConfig] = {
     "known_poses": SfmConfig(),
     "features_2048": SfmConfig(max_num_features=2048),
     "pairs_8": SfmConfig(pair_max_per_image=8),
+    "neighbours_4": SfmConfig(sequential_overlap=4, pair_max_per_image=8),
+    "neighbours_3": SfmConfig(sequential_overlap=3, pair_max_per_image=6),
     "features_2048_pairs_8": SfmConfig(max_num_features=2048, pair_max_per_image=8),
     "rounds_0": SfmConfig(known_pose_rounds=0),
     "ba_iterations_15": SfmConfig(ba_max_iterations=15),

@@ -269,6 +269,30 @@ def test_silhouette_views_are_evenly_spaced_registered_frames(tmp_path):
     assert len(silhouette_views(capture, given_masks(capture), poses, registered)) == 5
 
 
+def test_silhouette_views_take_known_signed_distances_with_the_new_poses(tmp_path):
+    # the visual hull from other poses (the AR ones) reuses the masks' transforms: the same
+    # views, bit for bit, as transforming the masks again
+    from volec.capture import read_transforms_json
+    from volec.synth import PRESETS, write_synthetic_capture
+
+    out = write_synthetic_capture("apple", tmp_path / "apple",
+                                  PRESETS["quick"].with_(n_frames=5), progress=False)
+    capture = read_transforms_json(out / "capture")
+    masks = given_masks(capture)
+    poses = np.stack([f.T_world_from_cam for f in capture.frames])
+    other = poses.copy()
+    other[:, :3, 3] += [0.01, -0.02, 0.005]
+    registered = np.array([True, True, False, True, True])
+    known = silhouette_views(capture, masks, poses, registered)
+    fresh = silhouette_views(capture, masks, other, np.ones(5, bool))
+    reused = silhouette_views(capture, masks, other, np.ones(5, bool), known=known)
+    assert [v.name for v in reused] == [v.name for v in fresh]
+    for a, b in zip(reused, fresh, strict=True):
+        np.testing.assert_array_equal(a.signed_distance_px, b.signed_distance_px)
+        np.testing.assert_array_equal(a.T_cam_from_world, b.T_cam_from_world)
+    assert reused[0].signed_distance_px is known[0].signed_distance_px  # not made again
+
+
 def _sphere_on_table(r: float = 0.03, n_views: int = 24):
     """A sphere of radius ``r`` resting on the table z = 0: its centre, 40 000 unit directions
     from it (seeded), the table, and the exact silhouettes from ``n_views`` cameras 0.3 m

@@ -776,7 +776,8 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
                     f"{tag}_unknown_share": est.bounds.unknown_share,
                     **mesh_offset_scores(made.mesh.mesh, truth_mesh, prefix=f"{tag}_mesh"),
                     **{f"{tag}_{k}": v for k, v in made.seconds.items()}}
-        row |= _ar_visual_hull_scores(capture, stages, cfg, basis.support[0], truth_points)
+        row |= _ar_visual_hull_scores(capture, stages, cfg, basis.support[0], truth_points,
+                                      silhouettes)
         return row
 
     return cached_row(work / VOLUME_CACHE, key, run)
@@ -789,10 +790,12 @@ def _mesh_scores(mesh: Any, truth_points: np.ndarray, tag: str) -> dict[str, flo
 
 
 def _ar_visual_hull_scores(capture: Capture, stages: Any, cfg: EstimateConfig,
-                           support: Any, truth_points: np.ndarray) -> dict[str, Any]:
+                           support: Any, truth_points: np.ndarray,
+                           silhouettes: list[Any] | None) -> dict[str, Any]:
     """The visual hull of the food masks from the AR poses alone (no SfM, no depth), above
     the support plane the pipeline found: its volume and Chamfer distance (``visual_hull_*``).
-    """
+    The estimate's ``silhouettes`` (the same masks, seen from the refined poses) lend their
+    signed distances."""
     from volec.masking import usable_masks
     from volec.meshing import silhouette_views
     from volec.space import visual_hull_mesh
@@ -802,7 +805,7 @@ def _ar_visual_hull_scores(capture: Capture, stages: Any, cfg: EstimateConfig,
     use = usable_masks(stages.masks, stages.masked.report["unusable_masks"])
     ar_poses = np.stack([f.T_world_from_cam for f in capture.frames])
     views = silhouette_views(capture, stages.masks, ar_poses, use,
-                             cfg.meshing.silhouette_max_views)
+                             cfg.meshing.silhouette_max_views, known=silhouettes or ())
     hull = visual_hull_mesh(stages.masked.cloud, views, support, cfg.space)
     return {"visual_hull_ml": volume_ml(hull), **_mesh_scores(hull, truth_points, "visual_hull"),
             "visual_hull_s": time.perf_counter() - start}

@@ -40,7 +40,7 @@ compiled code beyond open3d and scikit-image and give a closed surface by constr
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -315,15 +315,27 @@ def silhouette_view(mask: np.ndarray, intrinsics: Intrinsics, T_world_from_cam: 
 
 
 def silhouette_views(capture: Capture, masks: MaskSet, T_world_from_cam: np.ndarray,
-                     registered: np.ndarray, max_views: int = 0) -> list[SilhouetteView]:
+                     registered: np.ndarray, max_views: int = 0,
+                     known: Sequence[SilhouetteView] = ()) -> list[SilhouetteView]:
     """The silhouettes (``masks``) of the registered frames of ``capture`` (refined poses,
-    metres); at most ``max_views`` of them, evenly spaced through the capture (0: all)."""
+    metres); at most ``max_views`` of them, evenly spaced through the capture (0: all). A
+    frame with a view in ``known`` (the same masks seen with other poses) takes its signed
+    distances from there instead of transforming its mask again."""
     chosen = np.flatnonzero(np.asarray(registered, bool))
     if 0 < max_views < len(chosen):
         chosen = chosen[np.round(np.linspace(0, len(chosen) - 1, max_views)).astype(int)]
-    return [silhouette_view(masks.mask(int(i)), capture.frames[i].intrinsics,
-                            T_world_from_cam[i], capture.frames[i].name)
-            for i in chosen]
+    by_name = {view.name: view for view in known}
+    views = []
+    for i in chosen:
+        frame = capture.frames[i]
+        if frame.name in by_name:
+            views.append(replace(by_name[frame.name], intrinsics=frame.intrinsics,
+                                 T_cam_from_world=np.linalg.inv(
+                                     np.asarray(T_world_from_cam[i], float))))
+        else:
+            views.append(silhouette_view(masks.mask(int(i)), frame.intrinsics,
+                                         T_world_from_cam[i], frame.name))
+    return views
 
 
 def _project(view: SilhouetteView, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -432,11 +444,19 @@ def _view_samples(points: np.ndarray, views: list[SilhouetteView], mode: str
             xyz = torch.from_numpy((points[start:start + chunk] - origin).astype(np.float32))
             cam = torch.matmul(xyz, T[:, :, :3].transpose(1, 2)) + T[:, None, :, 3]  # V, n, 3
             z = cam[..., 2]
-            u = cam[..., 0] / z * f_c[..., 0] + f_c[..., 2]
-            v = cam[..., 1] / z * f_c[..., 1] + f_c[..., 3]
-            ok = (z > 1e-9) & (u >= 0) & (u <= w - 1) & (v >= 0) & (v <= h - 1)
-            grid = torch.stack([u / (w - 1) * 2 - 1, v / (h - 1) * 2 - 1], dim=-1)
-            grid = torch.where(ok[..., None], grid, torch.zeros_like(grid))
+            # In place where a temporary would be made: the same operations in the same
+            # order, so the same bits (100 views of 480x640, 250 000 points: 0.87 of the
+            # time out of place took).
+            u = (cam[..., 0] / z).mul_(f_c[..., 0]).add_(f_c[..., 2])
+            v = (cam[..., 1] / z).mul_(f_c[..., 1]).add_(f_c[..., 3])
+            ok = z > 1e-9
+            ok &= u >= 0
+            ok &= u <= w - 1
+            ok &= v >= 0
+            ok &= v <= h - 1
+            grid = torch.stack([u.div_(w - 1).mul_(2).sub_(1), v.div_(h - 1).mul_(2).sub_(1)],
+                               dim=-1)
+            grid.masked_fill_(~ok[..., None], 0.0)
             sampled = F.grid_sample(images, grid[:, None], mode=mode,
                                     align_corners=True)[:, 0, 0]
             yield slice(start, start + len(xyz)), sampled, z / f_c[..., 0], ok
