@@ -145,3 +145,28 @@ def test_a_symmetric_item_is_reflected_plainly():
     _, cloud, table, _, space = _seen_from_above(0.03)
     _, record = underside_points(cloud, table, space, UndersideConfig())
     assert record["symmetric"] and abs(record["squash"] - 1.0) < 0.03
+
+
+def test_a_stalk_on_top_does_not_lift_the_reflection_off_the_plate():
+    # an apple's stalk: a thin stem 6 mm above the body. Were its tip the food's top, the
+    # reflection would be squashed to rest the stalk's mirror image on the plate, lifting the
+    # reflected body off it (inside the sphere); the body's own top rests there
+    from volec.underside import body_top
+
+    r = 0.03
+    centre, cloud, table, _, space = _seen_from_above(r)
+    rng = np.random.default_rng(8)
+    angle, height = rng.uniform(0, 2 * np.pi, 1500), rng.uniform(0, 0.006, 1500)
+    side = np.column_stack([np.cos(angle), np.sin(angle), np.zeros(1500)])
+    stalk = PointCloud(centre + [0.0, 0.0, r] + 0.0013 * side + np.outer(height, UP), None,
+                       side)
+    with_stalk = cloud.joined(stalk)
+    heights = table.height_m(with_stalk.xyz)
+    assert np.percentile(heights, 99.5) > 2 * r + 0.004  # the stalk sets the top
+    assert abs(body_top(with_stalk.xyz, heights, UP, UndersideConfig()) - 2 * r) < 0.001
+    points, record = underside_points(with_stalk, table, space, UndersideConfig())
+    assert record["symmetric"] and record["squash"] == 1.0
+    assert np.median(np.abs(np.linalg.norm(points.xyz - centre, axis=1) - r)) < 0.0003
+    _, tip_record = underside_points(with_stalk, table, space,
+                                     UndersideConfig(min_top_width_share=0.0))
+    assert tip_record["squash"] < 0.95  # by the stalk's tip: lifted

@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
+from volec.geometry import horizontal_axes
 from volec.meshing import SupportPlane, near_points
 from volec.pointcloud import PREDICTED_RGB, PointCloud
 from volec.space import UNKNOWN, SpaceGrid, thinned
@@ -70,6 +71,14 @@ class UndersideConfig:
     that its lowest point rests on the plate: food rests on its lowest point, and a lower part
     flatter than the upper (a pasty's, a bun's) is the upper one squashed. False: the plain
     reflection, cut by the plate, which lays a flat disc under a dome-topped item."""
+    min_top_width_share: float = 0.15
+    """The reflection rests on the plate by the food's body, not by a thin part on its top:
+    the top that sets the squash is that of the highest horizontal slice
+    (``top_slice_m`` thick) whose width is at least this share of the widest slice's
+    (:func:`body_top`). An apple's stalk, 2.6 mm across against the body's 36 mm, had set
+    it: the stalk's tip, 6 mm above the body, then rested on the plate and lifted the
+    reflected body off it."""
+    top_slice_m: float = 0.001
     fit_points: int = 3000
     """Points of the cloud that score a candidate level."""
     inlier_spacings: float = 4.0
@@ -148,6 +157,30 @@ def resting_squash(level_m: float, top_m: float, cfg: UndersideConfig) -> float:
     return level_m / (top_m - level_m)
 
 
+def body_top(xyz: np.ndarray, height_m: np.ndarray, up: np.ndarray, cfg: UndersideConfig
+             ) -> float:
+    """The height (metres) of the food's body top: the 99.5th percentile of the points'
+    heights, but no higher than the top of the highest slice whose width is at least
+    ``cfg.min_top_width_share`` of the widest slice's. A slice's width is twice the 90th
+    percentile of its points' horizontal distances from their centroid (slices with fewer
+    than ten points do not count)."""
+    top = float(np.percentile(height_m, 99.5))
+    side, other = horizontal_axes(up)
+    flat = np.column_stack([xyz @ side, xyz @ other])
+    slices = np.floor(height_m / cfg.top_slice_m).astype(int)
+    widths = {}
+    for k in np.unique(slices):
+        these = flat[slices == k]
+        if len(these) >= 10:
+            widths[int(k)] = 2.0 * float(np.percentile(
+                np.linalg.norm(these - these.mean(axis=0), axis=1), 90))
+    if not widths:
+        return top
+    wide_enough = max(widths.values()) * cfg.min_top_width_share
+    highest = max(k for k, width in widths.items() if width >= wide_enough)
+    return min(top, (highest + 1) * cfg.top_slice_m)
+
+
 def fit_level(xyz: np.ndarray, normals: np.ndarray, height_m: np.ndarray, up: np.ndarray,
               space: SpaceGrid, cfg: UndersideConfig) -> LevelFit:
     """The horizontal mirror level whose reflection of the part of ``xyz`` above it lands
@@ -164,6 +197,7 @@ def fit_level(xyz: np.ndarray, normals: np.ndarray, height_m: np.ndarray, up: np
     radius = cfg.inlier_spacings * float(np.median(tree.query(sample, k=2)[0][:, 1]))
 
     top = float(np.percentile(height_m, 99.5))
+    body = body_top(xyz, height_m, up, cfg)  # what rests on the plate when squashed
     # the level is judged where the reflection lands nearest the wedge it fills, when the
     # cloud reaches down there: below low_share of the mid-height (one band for every level)
     band_m = cfg.low_share * top / 2
@@ -172,7 +206,7 @@ def fit_level(xyz: np.ndarray, normals: np.ndarray, height_m: np.ndarray, up: np
 
     def score(level: float) -> tuple[float, float]:
         upper = sample_h > level
-        squash = resting_squash(level, top, cfg)
+        squash = resting_squash(level, body, cfg)
         moved = reflected(sample[upper], sample_h[upper], level, up, squash)
         # the plain mirror keeps its own arithmetic, so its levels come out bit for bit
         moved_h = (2.0 * level - sample_h[upper] if squash == 1.0
@@ -209,7 +243,7 @@ def fit_level(xyz: np.ndarray, normals: np.ndarray, height_m: np.ndarray, up: np
     _, median, level = best
     symmetric = bool(np.isfinite(level) and median <= cfg.max_median_distance_m
                      and median < radius)
-    squash = resting_squash(level, top, cfg) if np.isfinite(level) else 1.0
+    squash = resting_squash(level, body, cfg) if np.isfinite(level) else 1.0
     return LevelFit(level, median, symmetric, squash)
 
 
