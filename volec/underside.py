@@ -79,6 +79,7 @@ class UndersideConfig:
     it: the stalk's tip, 6 mm above the body, then rested on the plate and lifted the
     reflected body off it."""
     top_slice_m: float = 0.001
+    """Thickness of the horizontal slices :func:`body_top` compares, metres."""
     fit_points: int = 3000
     """Points of the cloud that score a candidate level."""
     inlier_spacings: float = 4.0
