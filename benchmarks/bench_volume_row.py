@@ -6,11 +6,12 @@ Usage: .venv/bin/python benchmarks/bench_volume_row.py --before DIR [--after DIR
        [--items apple banana] [--scenario full_orbit] [--rounds 2]
 
 Each item's finished stages (data/bench-sfm/ITEM-full_orbit: capture, ground truth and the
-scenario's work folder, made by the notebooks or ``bench_volume.py`` if missing) are copied to
+scenario's work folder, made here as the benchmark scripts make them if missing) are copied to
 a temporary folder, so that the experiments' cache there is neither read nor overwritten. The
 row is then computed there from scratch by the code in ``--before`` and in ``--after`` (this
 checkout unless given; ``PYTHONPATH=DIR``, e.g. ``git worktree add /tmp/before REV``),
-alternating, each in a child process on one thread as a ``make paper`` worker runs it.
+alternating (before first in odd rounds, after first in even ones), each in a child process
+on one thread as a ``make paper`` worker runs it.
 Prints the wall times, their after/before ratio per item, and every result column (not a
 time) in which the two rows differ beyond 1e-9 relative; written to
 figures/volume_row_benchmark.{csv,md}.
@@ -107,7 +108,8 @@ def main() -> None:
         for rnd in range(args.rounds):
             for item in args.items:
                 made = {}
-                for code, name in ((args.before, "before"), (args.after, "after")):
+                order = [(args.before, "before"), (args.after, "after")]
+                for code, name in order if rnd % 2 == 0 else order[::-1]:  # alternating
                     made[name] = timed_row(code, Path(tmp), item, args.scenario)
                     print(f"round {rnd + 1} {item} {name}: {made[name]['row_wall_s']:.1f} s",
                           flush=True)

@@ -22,12 +22,12 @@ That lays the reflected top on the seen bottom, which is what is extended into t
 item whose bottom is fuller than its top gets a lower level). Food rests on its lowest point,
 so a reflection that would reach below the plate (the food more than twice the level high) is
 compressed vertically about the level until its lowest point rests on the plate: a lower part
-flatter than the upper one, as under a pasty or a bun, is the upper one squashed. The top that
-counts is the body's (:func:`body_top`): a thin part standing on it, as an apple's stalk, would
-rest its mirror image on the plate and lift the reflected body off it. Cut by the
-plate instead, the plain reflection would lay a flat disc under a dome-topped item. A cloud
-that half its reflected points do not meet within ``max_median_distance_m`` is not symmetric
-and gets nothing.
+flatter than the upper one, as under a pasty or a bun, is the upper one squashed. Cut by the
+plate instead, the plain reflection would lay a flat disc under a dome-topped item. The top
+that counts is the body's (:func:`body_top`): a thin part standing on it, as an apple's stalk,
+would rest its mirror image on the plate and lift the reflected body off it. A cloud that half
+its reflected points do not meet within ``max_median_distance_m`` is not symmetric and gets
+nothing.
 Otherwise only what lands in unknown space, above the plate, away from the measured points, is
 kept, as a prior's points (the meshing's checks drop them where the masks or the enclosed
 space disagree), and only where its normal faces away from the item's vertical axis: a hollow
