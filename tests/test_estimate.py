@@ -52,7 +52,8 @@ def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys
     assert mirror["spare_seen_food"] is True
     # the default completion looked for the underside's horizontal mirror, and says so
     underside = result["completion"]["underside"]
-    assert {"mirror_height_mm", "symmetric", "kept", "seconds"} <= set(underside)
+    assert {"mirror_height_mm", "symmetric", "squash", "body_top_mm", "kept",
+            "seconds"} <= set(underside)
     assert underside["symmetric"] or underside["kept"] == 0
     # the carving's share is a measured fact, and the trust flag follows it: over a 100-degree
     # arc Poisson closes the unseen side loosely, so the masks carve about a quarter (0.2564

@@ -170,3 +170,33 @@ def test_a_stalk_on_top_does_not_lift_the_reflection_off_the_plate():
     _, tip_record = underside_points(with_stalk, table, space,
                                      UndersideConfig(min_top_width_share=0.0))
     assert tip_record["squash"] < 0.95  # by the stalk's tip: lifted
+
+
+def _noisy_cylinder(radius_m: float, height_m: float, noise_m: float, seed: int
+                    ) -> PointCloud:
+    """Samples of a cylinder standing on z = 0 (its top disc and its wall, about 4 points per
+    square millimetre), each moved along its normal by Gaussian noise: stereo's scatter."""
+    rng = np.random.default_rng(seed)
+    n_top = int(4e6 * np.pi * radius_m**2)
+    n_wall = int(4e6 * 2 * np.pi * radius_m * height_m)
+    r, a = radius_m * np.sqrt(rng.uniform(0, 1, n_top)), rng.uniform(0, 2 * np.pi, n_top)
+    top = np.column_stack([r * np.cos(a), r * np.sin(a), np.full(n_top, height_m)])
+    a = rng.uniform(0, 2 * np.pi, n_wall)
+    out = np.column_stack([np.cos(a), np.sin(a), np.zeros(n_wall)])
+    wall = radius_m * out + np.outer(rng.uniform(0, height_m, n_wall), UP)
+    normals = np.vstack([np.tile(UP, (n_top, 1)), out])
+    xyz = np.vstack([top, wall]) + normals * rng.normal(0, noise_m, (len(normals), 1))
+    return PointCloud(xyz, None, normals)
+
+
+def test_the_body_top_is_the_surface_s_not_its_noise_s():
+    # a cake's flat top, its points scattered by half a millimetre: the highest half-percent
+    # of the raw heights is the scatter's tail, a millimetre above the top
+    from volec.underside import body_top
+
+    top_m = 0.04
+    cloud = _noisy_cylinder(0.03, top_m, 0.0005, seed=3)
+    heights = cloud.xyz[:, 2]
+    raw = body_top(cloud.xyz, heights, UP, UndersideConfig(top_neighbours=1))
+    assert raw > top_m + 0.0008
+    assert abs(body_top(cloud.xyz, heights, UP, UndersideConfig()) - top_m) < 0.0003

@@ -25,9 +25,10 @@ compressed vertically about the level until its lowest point rests on the plate:
 flatter than the upper one, as under a pasty or a bun, is the upper one squashed. Cut by the
 plate instead, the plain reflection would lay a flat disc under a dome-topped item. The top
 that counts is the body's (:func:`body_top`): a thin part standing on it, as an apple's stalk,
-would rest its mirror image on the plate and lift the reflected body off it. A cloud that half
-its reflected points do not meet within ``max_median_distance_m`` is not symmetric and gets
-nothing.
+would rest its mirror image on the plate and lift the reflected body off it, and so would the
+stereo noise scattered above a flat top, so the top is read on locally averaged heights. A
+cloud that half its reflected points do not meet within ``max_median_distance_m`` is not
+symmetric and gets nothing.
 Otherwise only what lands in unknown space, above the plate, away from the measured points, is
 kept, as a prior's points (the meshing's checks drop them where the masks or the enclosed
 space disagree), and only where its normal faces away from the item's vertical axis: a hollow
@@ -82,6 +83,16 @@ class UndersideConfig:
     reflected body off it."""
     top_slice_m: float = 0.001
     """Thickness of the horizontal slices :func:`body_top` compares, metres."""
+    top_neighbours: int = 64
+    """:func:`body_top` reads each point's height as the mean over its this-many nearest
+    points (1: the raw heights): the top of the surface, not of its noise. Stereo scatters
+    points by about half a millimetre either side of a surface, and the highest half-percent
+    of a flat top's points is that scatter's tail: on the benchmark's chocolate cake the
+    points facing up lay at a median 45.40 mm above the plate, their 99th percentile at
+    47.04 mm, the true top at 45.69 mm. Squashed to rest a top 1.3 mm too high on the plate,
+    the reflection's floor hovered 0.5-1 mm above it under half the slice (-0.7 % of its
+    volume). Averaged over 64 points (a patch about 2 mm across at the dense cloud's 0.5 mm
+    spacing), a dome's apex comes down by well under a tenth of a millimetre."""
     fit_points: int = 3000
     """Points of the cloud that score a candidate level."""
     inlier_spacings: float = 4.0
@@ -123,6 +134,9 @@ class LevelFit:
     squash: float = 1.0
     """The reflection's vertical scale below the level (1: a plain mirror; less where the
     food rests on the plate, :attr:`UndersideConfig.rest_on_plate`)."""
+    body_top_m: float = float("nan")
+    """The height above the plate of the food's body top that sets the squash
+    (:func:`body_top`), metres."""
 
     def record(self) -> dict[str, Any]:
         """JSON-able form."""
@@ -130,7 +144,9 @@ class LevelFit:
         return {"mirror_height_mm": round(1000 * self.height_m, 2) if finite else None,
                 "reflected_median_distance_mm":
                     round(1000 * self.median_distance_m, 3) if finite else None,
-                "symmetric": self.symmetric, "squash": round(self.squash, 4)}
+                "symmetric": self.symmetric, "squash": round(self.squash, 4),
+                "body_top_mm": (round(1000 * self.body_top_m, 2)
+                                if np.isfinite(self.body_top_m) else None)}
 
 
 def reflected(xyz: np.ndarray, height_m: np.ndarray, level_m: float, up: np.ndarray,
@@ -160,13 +176,24 @@ def resting_squash(level_m: float, top_m: float, cfg: UndersideConfig) -> float:
     return level_m / (top_m - level_m)
 
 
+def surface_heights(xyz: np.ndarray, height_m: np.ndarray, neighbours: int) -> np.ndarray:
+    """(N,) each point's ``height_m`` averaged with those of its nearest points, ``neighbours``
+    in all (itself included; the raw heights when 1 or fewer)."""
+    k = min(int(neighbours), len(xyz))
+    if k <= 1:
+        return height_m
+    return height_m[cKDTree(xyz).query(xyz, k=k)[1]].mean(axis=1)
+
+
 def body_top(xyz: np.ndarray, height_m: np.ndarray, up: np.ndarray, cfg: UndersideConfig
              ) -> float:
-    """The height (metres) of the food's body top: the 99.5th percentile of the points'
-    heights, but no higher than the top of the highest slice whose width is at least
-    ``cfg.min_top_width_share`` of the widest slice's. A slice's width is twice the 90th
-    percentile of its points' horizontal distances from their centroid (slices with fewer
-    than ten points do not count)."""
+    """The height (metres) of the food's body top, on the points' heights averaged over
+    ``cfg.top_neighbours`` (:func:`surface_heights`): their 99.5th percentile, but no higher
+    than the top of the highest slice whose width is at least ``cfg.min_top_width_share`` of
+    the widest slice's. A slice's width is twice the 90th percentile of its points'
+    horizontal distances from their centroid (slices with fewer than ten points do not
+    count)."""
+    height_m = surface_heights(xyz, height_m, cfg.top_neighbours)
     top = float(np.percentile(height_m, 99.5))
     side, other = horizontal_axes(up)
     flat = np.column_stack([xyz @ side, xyz @ other])
@@ -247,7 +274,7 @@ def fit_level(xyz: np.ndarray, normals: np.ndarray, height_m: np.ndarray, up: np
     symmetric = bool(np.isfinite(level) and median <= cfg.max_median_distance_m
                      and median < radius)
     squash = resting_squash(level, body, cfg) if np.isfinite(level) else 1.0
-    return LevelFit(level, median, symmetric, squash)
+    return LevelFit(level, median, symmetric, squash, body)
 
 
 def facing_out(points: np.ndarray, normals: np.ndarray, centre: np.ndarray, up: np.ndarray,
