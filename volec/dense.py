@@ -141,6 +141,22 @@ class DenseConfig:
     refine_sweeps: int = 2
     """Local sweeps, each finer, that refine the first sweep's depth (0: the plane sweep and
     its parabola alone)."""
+    refine_median_px: int = 0
+    """Before each refining sweep, the inverse depths it starts from, and that its windows
+    follow, are median-filtered over this many pixels square (3 or 5; 0: taken as they are).
+    The windows follow the surface by warping each pixel at its own depth; where the first
+    sweep's peak was wrong (a faint skin, an oblique view), a pixel's own depth and its
+    window's are outliers that the local sweep cannot reach, and its neighbours' windows
+    follow it too. Started from the median of its neighbours' instead, it is refined about
+    the surface around it. With the exact poses on the benchmark's phone-look full orbits
+    (``benchmarks/bench_depth_bias.py``), 5 took the share of food pixels whose depth lies
+    within the 0.5 % fusion's consistency test asks from 41 to 56 % (banana), 41 to 59 %
+    (apple) and 37 to 56 % (chocolate cake), on the faintest skin (window standard deviation
+    under 0.01) from 46 to 72 %, 29 to 62 % and 33 to 58 %, the median errors within 0.05 mm
+    of before; on the ten faint-skinned items it covered 79.7 % of the surface two cameras
+    saw instead of 72.5 %. Off by default: on the 21 full orbits the default estimate's MAPE
+    went 0.78 -> 0.83 % (p = 0.61; without completion 1.45 -> 1.34 %, p = 0.13), README
+    (Dense cloud and masking)."""
     depth_range_margin: float = 0.08
     """The sparse points' depth range (2nd to 98th percentile) is widened by this fraction."""
     min_ncc: float = 0.45
@@ -623,7 +639,9 @@ def _refine(ref: _Reference, terms, inv, step: float, cfg: DenseConfig):
 
     A pixel's window is warped with its neighbours' own depths plus the same offset, which
     follows the surface; starting from the quantised planes instead, it would follow their
-    staircase and not refine (measured on the textured-plane test)."""
+    staircase and not refine (measured on the textured-plane test). Each sweep starts from
+    the inverse depths median-filtered (:attr:`DenseConfig.refine_median_px`), so that an
+    outlier neither stays one nor bends its neighbours' windows."""
     import torch
 
     n = cfg.n_refine_hypotheses
@@ -631,6 +649,8 @@ def _refine(ref: _Reference, terms, inv, step: float, cfg: DenseConfig):
     span = step * cfg.refine_span_planes
     best_cost = None
     for _ in range(cfg.refine_sweeps):
+        if cfg.refine_median_px:
+            inv = _median_filtered(inv, ref.shape, cfg.refine_median_px)
         hyp = inv[None] + offsets[:, None] * span  # (n, P)
         cost = _aggregate(ref, terms, hyp, cfg).reshape(n, len(inv))
         best_cost, j = cost.max(dim=0)
@@ -638,6 +658,18 @@ def _refine(ref: _Reference, terms, inv, step: float, cfg: DenseConfig):
         inv = _parabola_peak(cost, j, hyp.gather(0, j[None])[0], spacing)
         span = spacing
     return inv, best_cost
+
+
+def _median_filtered(values, shape: tuple[int, int], k: int):
+    """(P,) ``values`` over a crop of ``shape`` median-filtered over k x k pixels (OpenCV's
+    median filter, which takes float32 for k of 3 or 5; edges replicated)."""
+    import cv2
+    import torch
+
+    if k not in (3, 5):
+        raise ValueError(f"refine_median_px must be 0, 3 or 5, not {k}")
+    image = values.reshape(shape).cpu().numpy().astype(np.float32)
+    return torch.from_numpy(cv2.medianBlur(image, k).reshape(-1)).to(values.device)
 
 
 def surface_cosines(view: View, depth_m: np.ndarray) -> np.ndarray:
