@@ -36,9 +36,8 @@ from volec.metrics import sample_surface_with_normals, signed_distances_to_surfa
 from volec.paths import experiment_dir, figures_dir
 from volec.pointcloud import read_ply
 from volec.sfm import fit_similarity, load_sfm
+from volec.synth import load_truth
 from volec.tables import write_table
-
-UP = np.array([0.0, 1.0, 0.0])  # the benchmark's world_up
 
 
 def truth_from_reconstruction(folder: Path) -> np.ndarray:
@@ -64,6 +63,8 @@ def cross_section_mm2(mesh: trimesh.Trimesh, height_m: float, step_m: float = 0.
 def item_rows(item: str, scenario: str, mesh_name: str, edges_mm: list[float]) -> list[dict]:
     """One row per band and orientation of ``item``'s mesh (see the module docstring)."""
     folder = scenarios(False)[scenario].folder(experiment_dir(False), item)
+    if not np.allclose(load_truth(folder)["world_up"], [0.0, 1.0, 0.0]):
+        raise SystemExit(f"{item}: world_up is not +y; the sections here are horizontal in y")
     T = truth_from_reconstruction(folder)
     truth = trimesh.load(folder / "ground_truth" / "food_mesh.ply")
     mesh = trimesh.load(folder / "work" / mesh_name)
@@ -76,13 +77,14 @@ def item_rows(item: str, scenario: str, mesh_name: str, edges_mm: list[float]) -
     bottom = float(truth.vertices[:, 1].min())
     floor = {"mesh_section_0p2_mm2": cross_section_mm2(mesh, bottom + 0.0002),
              "truth_section_0p2_mm2": cross_section_mm2(truth, bottom + 0.0002)}
-    height, truth_height = points @ UP - bottom, truth_points @ UP - bottom
+    height, truth_height = points[:, 1] - bottom, truth_points[:, 1] - bottom
     edges = [e / 1000 for e in edges_mm] + [np.inf]
     rows = []
     for low, high in zip(edges[:-1], edges[1:], strict=True):
-        for facing, down, truth_down in (("down", normals @ UP < -0.7, truth_normals @ UP < -0.7),
-                                         ("other", normals @ UP >= -0.7,
-                                          truth_normals @ UP >= -0.7)):
+        for facing, down, truth_down in (("down", normals[:, 1] < -0.7,
+                                          truth_normals[:, 1] < -0.7),
+                                         ("other", normals[:, 1] >= -0.7,
+                                          truth_normals[:, 1] >= -0.7)):
             here = (height >= low) & (height < high) & down
             truth_here = (truth_height >= low) & (truth_height < high) & truth_down
             if here.sum() < 50:

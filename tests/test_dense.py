@@ -339,28 +339,33 @@ def test_a_coarse_view_sees_the_world_where_the_full_one_does(plane_scene):
     np.testing.assert_allclose(z_small, z)
 
 
+def _faint_plane_gain(plane_scene, plain: DenseConfig, changed: DenseConfig
+                     ) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """On the plane with 3 % of the texture's contrast: for ``plain`` and ``changed``, the
+    share of the inner pixels whose depth lies within the 0.5 % of the true depth that
+    fusion's consistency test asks of two views, and the relative errors of those with one."""
+    views, depths = plane_scene
+    faint = _faint(views, 0.03, 0.003)
+    out = []
+    for cfg in (plain, changed):
+        valid, rel, _ = _first_view_depth(faint, depths[0], cfg)
+        out.append((valid * (rel < 0.005).mean(), rel))
+    print("faint plane: within 0.5 %", out[0][0], out[1][0], "median error",
+          np.median(out[0][1]), np.median(out[1][1]))
+    return out[0][0], out[1][0], out[0][1], out[1][1]
+
+
 def test_a_coarse_first_sweep_recovers_the_plane_and_more_of_a_faint_one(plane_scene):
     views, depths = plane_scene
-    truth = depths[0]
-
-    def sweep(scene: list[View], cfg: DenseConfig) -> tuple[float, np.ndarray]:
-        return _first_view_depth(scene, truth, cfg)[:2]
-
-    # the coarse start alone, each refinement starting from its own depths
-    coarse = DenseConfig(coarse_factor=2, refine_median_px=0)
-    valid, rel = sweep(views, coarse)
+    coarse = DenseConfig(coarse_factor=2)
+    valid, rel, _ = _first_view_depth(views, depths[0], coarse)
     assert valid > 0.9
     assert np.median(rel) < 0.003 and np.percentile(rel, 95) < 0.015
     # A skin with 3 % of the texture's contrast: as many depths pass the correlation test,
     # but from the coarse sweep's start more of them lie within the 0.5 % of the true depth
     # that fusion's consistency test asks of two views (0.15 -> 0.20 of the pixels here).
-    faint = _faint(views, 0.03, 0.003)
-    full_valid, full_rel = sweep(faint, DenseConfig(refine_median_px=0))
-    coarse_valid, coarse_rel = sweep(faint, coarse)
-    full_good = full_valid * (full_rel < 0.005).mean()
-    coarse_good = coarse_valid * (coarse_rel < 0.005).mean()
-    print("faint plane: within 0.5 %", full_good, coarse_good, "median error",
-          np.median(full_rel), np.median(coarse_rel))
+    full_good, coarse_good, full_rel, coarse_rel = _faint_plane_gain(
+        plane_scene, DenseConfig(), coarse)
     assert coarse_good > 1.2 * full_good
     assert np.median(coarse_rel) < np.median(full_rel)
 
@@ -396,6 +401,9 @@ def test_a_coarse_factor_below_one_is_refused():
         with pytest.raises(ConfigError, match="coarse_factor"):
             plan_dense(None, None, np.zeros((0, 4, 4)), np.zeros(0, bool), np.zeros((0, 3)),
                        bad)
+    with pytest.raises(ConfigError, match="refine_median_px"):
+        plan_dense(None, None, np.zeros((0, 4, 4)), np.zeros(0, bool), np.zeros((0, 3)),
+                   DenseConfig(refine_median_px=4))
 
 
 def test_refining_from_the_neighbours_median_gets_more_of_a_faint_plane_right(plane_scene):
@@ -403,16 +411,7 @@ def test_refining_from_the_neighbours_median_gets_more_of_a_faint_plane_right(pl
     # pixels, and refined from there a pixel stays wrong and bends its neighbours' windows.
     # Started from the median of its neighbourhood's depths, more of the depths land within
     # the 0.5 % of the true depth that fusion's consistency test asks of two views.
-    views, depths = plane_scene
-    truth = depths[0]
-    faint = _faint(views, 0.03, 0.003)
-    plain_valid, plain_rel, _ = _first_view_depth(faint, truth, DenseConfig(refine_median_px=0))
-    median_valid, median_rel, _ = _first_view_depth(faint, truth, DenseConfig(refine_median_px=5))
-    plain_good = plain_valid * (plain_rel < 0.005).mean()
-    median_good = median_valid * (median_rel < 0.005).mean()
-    print("faint plane: within 0.5 %", plain_good, median_good, "median error",
-          np.median(plain_rel), np.median(median_rel))
+    plain_good, median_good, plain_rel, median_rel = _faint_plane_gain(
+        plane_scene, DenseConfig(), DenseConfig(refine_median_px=5))
     assert median_good > 1.2 * plain_good
     assert np.median(median_rel) < np.median(plain_rel)
-    with pytest.raises(ValueError, match="refine_median_px"):
-        _first_view_depth(faint, truth, DenseConfig(refine_median_px=4))

@@ -663,12 +663,11 @@ def _refine(ref: _Reference, terms, inv, step: float, cfg: DenseConfig):
 
 def _median_filtered(values, shape: tuple[int, int], k: int):
     """(P,) ``values`` over a crop of ``shape`` median-filtered over k x k pixels (OpenCV's
-    median filter, which takes float32 for k of 3 or 5; edges replicated)."""
+    median filter, which takes float32 for k of 3 or 5, :func:`plan_dense` checks; edges
+    replicated)."""
     import cv2
     import torch
 
-    if k not in (3, 5):
-        raise ValueError(f"refine_median_px must be 0, 3 or 5, not {k}")
     image = values.reshape(shape).cpu().numpy().astype(np.float32)
     return torch.from_numpy(cv2.medianBlur(image, k).reshape(-1)).to(values.device)
 
@@ -923,6 +922,8 @@ def plan_dense(capture: Capture, masks: MaskSet | None, T_world_from_cam: np.nda
         raise ConfigError("faint_window_px must be 0, or odd and larger than ncc_window_px")
     if cfg.coarse_factor < 1 or cfg.refine_span_planes <= 0:
         raise ConfigError("coarse_factor must be 1 or more and refine_span_planes positive")
+    if cfg.refine_median_px not in (0, 3, 5):
+        raise ConfigError("refine_median_px must be 0, 3 or 5 (OpenCV's float median filter)")
     if len(T_world_from_cam) != len(capture) or len(registered) != len(capture):
         raise ValueError("one pose and one registered flag per capture frame are needed")
     use_mask = cfg.roi == "mask" and masks is not None
