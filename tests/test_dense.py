@@ -401,6 +401,12 @@ def test_a_coarse_factor_below_one_is_refused():
         with pytest.raises(ConfigError, match="coarse_factor"):
             plan_dense(None, None, np.zeros((0, 4, 4)), np.zeros(0, bool), np.zeros((0, 3)),
                        bad)
+
+
+def test_a_median_window_opencv_cannot_filter_is_refused():
+    from volec.dense import plan_dense
+    from volec.errors import ConfigError
+
     with pytest.raises(ConfigError, match="refine_median_px"):
         plan_dense(None, None, np.zeros((0, 4, 4)), np.zeros(0, bool), np.zeros((0, 3)),
                    DenseConfig(refine_median_px=4))
@@ -412,6 +418,6 @@ def test_refining_from_the_neighbours_median_gets_more_of_a_faint_plane_right(pl
     # Started from the median of its neighbourhood's depths, more of the depths land within
     # the 0.5 % of the true depth that fusion's consistency test asks of two views.
     plain_good, median_good, plain_rel, median_rel = _faint_plane_gain(
-        plane_scene, DenseConfig(), DenseConfig(refine_median_px=5))
+        plane_scene, DenseConfig(refine_median_px=0), DenseConfig(refine_median_px=5))
     assert median_good > 1.2 * plain_good
     assert np.median(median_rel) < np.median(plain_rel)
