@@ -10,12 +10,13 @@ and, when given, once with the ``--set`` ones (``SECTION.FIELD=VALUE`` of
 :class:`volec.estimate.EstimateConfig`). Each food pixel's estimated depth is compared with
 the renderer's exact depth through the same pixel centre (read only to score). Pixels are
 grouped by the reference image's texture (the intensity standard deviation in the 7x7 window,
-0..1) and by how obliquely the camera sees the surface (the cosine between the exact
-surface's normal and the view ray). Per group: its share of the food pixels, the share that
-got a depth, the median signed error (mm; positive: farther from the camera than the surface,
-which on a convex item is inside it), and the share of the food pixels whose depth is within
-0.5 % of the truth (what fusion's consistency test asks of two views). Written to
-figures/depth_bias_SCENARIO.{csv,md}.
+0..1), by how obliquely the camera sees the surface (the cosine between the exact surface's
+normal and the view ray) and by how far inside the food mask's outline they lie (pixels at
+working resolution, the Euclidean distance transform). Per group: its share of the food
+pixels, the share that got a depth, the median signed error (mm; positive: farther from the
+camera than the surface, which on a convex item is inside it), and the share of the food
+pixels whose depth is within 0.5 % of the truth (what fusion's consistency test asks of two
+views). Written to figures/depth_bias_SCENARIO.{csv,md}.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ from volec.tables import write_table
 
 TEXTURE_BINS = (0.0, 0.01, 0.02, 0.04, 1.0)
 COSINE_BINS = (0.0, 0.5, 0.75, 0.9, 1.01)
+OUTLINE_BINS = (0.0, 2.0, 4.0, 6.0, 8.0, 10.0, 1000.0)
 
 
 def _window_std(gray: np.ndarray, k: int = 7) -> np.ndarray:
@@ -78,9 +80,11 @@ def pixel_errors(item: str, scenario_name: str, settings: tuple[str, ...]) -> pd
             food &= np.isfinite(exact_depth)
             cosine = surface_cosines(view, np.where(np.isfinite(exact_depth), exact_depth, 0))
             got = depth_map.depth_m
+            outline_px = cv2.distanceTransform(food.astype(np.uint8), cv2.DIST_L2, 5)
             rows.append(pd.DataFrame({
                 "item": item, "config": name, "texture": _window_std(view.gray)[food],
-                "cosine": cosine[food], "estimated": got[food] > 0,
+                "cosine": cosine[food], "outline_px": outline_px[food],
+                "estimated": got[food] > 0,
                 "error_m": np.where(got[food] > 0, got[food] - exact_depth[food], np.nan),
                 "relative": np.where(got[food] > 0, (got[food] - exact_depth[food])
                                      / exact_depth[food], np.nan)}))
@@ -98,10 +102,10 @@ def _scores(group: pd.DataFrame, n: int) -> dict[str, float]:
 def summary(pixels: pd.DataFrame, by: str, bins: tuple[float, ...]) -> pd.DataFrame:
     """Per item, config and bin of ``by`` (and all pixels): the shares and the median signed
     error."""
-    pixels = pixels.assign(bin=pd.cut(pixels[by], bins, right=False).astype(str))
+    pixels = pixels.assign(bin=pd.cut(pixels[by], bins, right=False))  # ordered categories
     rows = []
     for (item, config), part in pixels.groupby(["item", "config"], sort=False):
-        for b, group in part.groupby("bin", sort=True):
+        for b, group in part.groupby("bin", sort=True, observed=True):
             rows.append({"item": item, "config": config, "group": f"{by} {b}",
                          **_scores(group, len(part))})
         if by == "texture":
@@ -127,7 +131,8 @@ def main() -> None:
                        args.workers, progress=True)
     pixels = pd.concat([f["pixels"] for f in frames])
     table = pd.concat([summary(pixels, "texture", TEXTURE_BINS),
-                       summary(pixels, "cosine", COSINE_BINS)])
+                       summary(pixels, "cosine", COSINE_BINS),
+                       summary(pixels, "outline_px", OUTLINE_BINS)])
     write_table(table, figures_dir() / f"depth_bias_{args.scenario}", float_digits=3)
     print(table.to_string(index=False, float_format=lambda x: f"{x:.3f}"))
 

@@ -421,3 +421,69 @@ def test_refining_from_the_neighbours_median_gets_more_of_a_faint_plane_right(pl
         plane_scene, DenseConfig(refine_median_px=0), DenseConfig(refine_median_px=5))
     assert median_good > 1.2 * plain_good
     assert np.median(median_rel) < np.median(plain_rel)
+
+
+def _disc(radius_px: float, centre: tuple[float, float] = ((W - 1) / 2, (H - 1) / 2)
+          ) -> np.ndarray:
+    u, v = np.meshgrid(np.arange(W), np.arange(H))
+    return np.hypot(u - centre[0], v - centre[1]) <= radius_px
+
+
+def test_the_contour_band_is_the_ring_just_inside_the_mask_outline():
+    from dataclasses import replace
+
+    from volec.dense import contour_band
+
+    view = View(0, K, np.eye(4), np.zeros((H, W), np.float32), np.zeros((H, W, 3), np.uint8),
+                np.ones((H, W), bool), _disc(40.0))
+    u, v = np.meshgrid(np.arange(W), np.arange(H))
+    radius = np.hypot(u - (W - 1) / 2, v - (H - 1) / 2)
+    band = contour_band(view, 6.0)
+    assert not band[~view.food].any()  # only inside the mask
+    assert band[view.food & (radius > 40.0 - 4.5)].all()  # the outermost pixels
+    assert not band[radius < 40.0 - 7.5].any()  # the interior
+    assert not contour_band(view, 0.0).any()
+    assert not contour_band(replace(view, food=None), 6.0).any()
+
+
+def _world_disc(view: View, depth: np.ndarray, radius_m: float) -> np.ndarray:
+    """The pixels of ``view`` whose point on the plane z = 0 lies within ``radius_m`` of the
+    origin (a round food item's outline as that view sees it)."""
+    u, v = np.meshgrid(np.arange(W), np.arange(H))
+    uv = np.stack([u.ravel(), v.ravel()], axis=1).astype(float)
+    X = backproject(view.K, view.T_cam_from_world, uv, depth.ravel())
+    return (np.hypot(X[:, 0], X[:, 1]) <= radius_m).reshape(H, W)
+
+
+def test_depths_near_an_outline_give_way_to_interior_ones_that_cover_the_surface(plane_scene):
+    from dataclasses import replace
+
+    from volec.dense import DensePlan, DepthMap, fuse_depth_maps
+
+    views, depths = plane_scene
+    # View 0 paints its pixels red so that its points can be told apart in the fused cloud.
+    red = np.zeros((H, W, 3), np.uint8)
+    red[..., 0] = 255
+    refs = list(range(len(views)))
+    checks = {r: [o for o in refs if o != r] for r in refs}
+
+    def red_radii(radius_m: list[float], margin_px: float) -> np.ndarray:
+        scene = [replace(v, food=_world_disc(v, d, r), rgb=red if i == 0 else v.rgb)
+                 for i, (v, d, r) in enumerate(zip(views, depths, radius_m, strict=True))]
+        plan = DensePlan(scene, refs, {r: [] for r in refs}, checks, True)
+        maps = {i: DepthMap(np.where(v.food, d, 0.0).astype(np.float32),
+                            np.ones_like(d, np.float32), [])
+                for i, (v, d) in enumerate(zip(scene, depths, strict=True))}
+        cfg = DenseConfig(contour_margin_px=margin_px, fusion_voxel_m=0.0)
+        cloud = fuse_depth_maps(plan, maps, cfg)[0]
+        return np.hypot(*cloud.xyz[cloud.rgb[:, 0] == 255][:, :2].T)
+
+    # Food 60 mm round in view 0, 100 mm in the others: the ring just inside view 0's
+    # outline lies well inside theirs. Without a margin view 0's depths reach its outline ...
+    small_in_0 = [0.06] + [0.1] * (len(views) - 1)
+    assert red_radii(small_in_0, 0.0).max() > 0.058
+    # ... with one, its outermost ones give way to the others', which cover the ring.
+    kept = red_radii(small_in_0, 6.0)
+    assert 0 < len(kept) and kept.max() < 0.055
+    # Where every view has the same outline, nothing covers the ring: view 0 fills it.
+    assert red_radii([0.06] * len(views), 6.0).max() > 0.058
