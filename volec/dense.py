@@ -245,16 +245,16 @@ class DenseConfig:
     """Depths less than this many pixels (working resolution) inside their view's food-mask
     outline give way to the others: they are dropped where a depth from further inside some
     view lies within ``contour_gap_m``, and kept where none does (0: off, the default;
-    without masks it does nothing). Near its outline a view sees the surface at a grazing
-    angle, and those depths lie behind it: on the faint banana with the exact poses, the
-    depths 2-4 px inside the outline at a median of -1.3 mm, 4-6 px -2.1 mm, from 6 px on
-    0.0 mm. At 6 (``contour_gap_m`` 3 mm) the default estimate's MAPE went 1.40 -> 1.01 % on
-    the ten faint skins (p = 0.10) and 0.78 -> 0.73 % on the 21 full orbits (p = 0.55), but
-    1.20 -> 1.49 % on the half orbits (p = 0.09), 1.07 -> 1.40 % on the sparse ones (p =
-    0.018) and 1.81 -> 1.95 % at low elevations, and without completion every scenario but
-    the low one lost (full orbits 1.45 -> 1.64 %, p = 0.046): the inward depths it removes
-    were offsetting outward errors elsewhere (README, Dense cloud). Off until those are
-    found."""
+    without masks, or with ``roi="full"``, it does nothing). Near its outline a view sees the
+    surface at a grazing angle, and those depths lie behind it: on the faint banana with the
+    exact poses, the confirmed depths 2-4 px inside the outline at a median of 1.3 mm inside
+    the surface, 4-6 px 2.1 mm, from 6 px on 0.0 mm. At 6 (``contour_gap_m`` 3 mm) the
+    default estimate's MAPE went 1.40 -> 1.01 % on the ten faint skins (p = 0.10) and 0.78
+    -> 0.73 % on the 21 full orbits (p = 0.55), but 1.20 -> 1.49 % on the half orbits (p =
+    0.09), 1.07 -> 1.40 % on the sparse ones (p = 0.018) and 1.81 -> 1.95 % at low
+    elevations, and without completion every scenario but the low one lost (full orbits
+    1.45 -> 1.64 %, p = 0.046): the inward depths it removes were offsetting outward errors
+    elsewhere (README, Dense cloud). Off until those are found."""
     contour_gap_m: float = 0.003
     """With ``contour_margin_px``: how far, metres, the nearest depth from further inside an
     outline must be for a depth near one to be kept (it fills a hole). Larger than the depths'
