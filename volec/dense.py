@@ -254,7 +254,9 @@ class DenseConfig:
     0.09), 1.07 -> 1.40 % on the sparse ones (p = 0.018) and 1.81 -> 1.95 % at low
     elevations, and without completion every scenario but the low one lost (full orbits
     1.45 -> 1.64 %, p = 0.046): the inward depths it removes were offsetting outward errors
-    elsewhere (README, Dense cloud). Off until those are found."""
+    elsewhere (README, Dense cloud). With the visual hull's silhouette margin at 0.25 px as
+    well, the losses without completion went, but not the default's on half orbits (1.64 %)
+    and sparse ones (1.36 %). Off until those are found."""
     contour_gap_m: float = 0.003
     """With ``contour_margin_px``: how far, metres, the nearest depth from further inside an
     outline must be for a depth near one to be kept (it fills a hole). Larger than the depths'
