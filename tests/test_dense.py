@@ -423,10 +423,10 @@ def test_refining_from_the_neighbours_median_gets_more_of_a_faint_plane_right(pl
     assert np.median(median_rel) < np.median(plain_rel)
 
 
-def _disc(radius_px: float, centre: tuple[float, float] = ((W - 1) / 2, (H - 1) / 2)
-          ) -> np.ndarray:
+def _disc(radius_px: float) -> np.ndarray:
+    """(H, W) bool: a disc of ``radius_px`` about the image centre."""
     u, v = np.meshgrid(np.arange(W), np.arange(H))
-    return np.hypot(u - centre[0], v - centre[1]) <= radius_px
+    return np.hypot(u - (W - 1) / 2, v - (H - 1) / 2) <= radius_px
 
 
 def test_the_contour_band_is_the_ring_just_inside_the_mask_outline():
