@@ -487,3 +487,53 @@ def test_depths_near_an_outline_give_way_to_interior_ones_that_cover_the_surface
     assert 0 < len(kept) and kept.max() < 0.055
     # Where every view has the same outline, nothing covers the ring: view 0 fills it.
     assert red_radii([0.06] * len(views), 6.0).max() > 0.058
+
+
+CARD_HEIGHT_M, CARD_HALF_M = 0.02, 0.03
+
+
+def _card_view(index: int, T_cam_from_world: np.ndarray, card_tex: np.ndarray,
+               plate_tex: np.ndarray) -> tuple[View, np.ndarray]:
+    """A textured square card 20 mm above a differently textured plane (the food and the
+    plate behind its outline): image, true depth, and the card as the food mask."""
+    u, v = np.meshgrid(np.arange(W), np.arange(H))
+    T = invert_rigid(T_cam_from_world)
+    rays = np.stack([(u - K[0, 2]) / F, (v - K[1, 2]) / F, np.ones_like(u, float)], -1)
+    d = rays @ T[:3, :3].T
+    gray, depth, card = (np.zeros((H, W)) for _ in range(3))
+    for height, tex, is_card in ((0.0, plate_tex, False), (CARD_HEIGHT_M, card_tex, True)):
+        t = (height - T[2, 3]) / d[..., 2]
+        X = T[:3, 3] + t[..., None] * d
+        hit = ((np.abs(X[..., 0]) < CARD_HALF_M) & (np.abs(X[..., 1]) < CARD_HALF_M)
+               if is_card else np.ones((H, W), bool))
+        rows = X[..., 1] / TEXEL_M + tex.shape[0] / 2
+        cols = X[..., 0] / TEXEL_M + tex.shape[1] / 2
+        gray = np.where(hit, ndimage.map_coordinates(tex, [rows, cols], order=3,
+                                                     mode="reflect"), gray)
+        depth = np.where(hit, t * rays[..., 2], depth)
+        card = np.where(hit, is_card, card)
+    gray = ndimage.gaussian_filter(gray, 0.7).astype(np.float32)  # a lens's blur
+    rgb = np.repeat((gray.clip(0, 1) * 255).astype(np.uint8)[..., None], 3, axis=-1)
+    return View(index, K, T_cam_from_world, gray, rgb, np.ones((H, W), bool),
+                card.astype(bool)), depth
+
+
+def test_food_only_windows_keep_the_depths_at_the_outline_on_the_food():
+    card_tex, plate_tex = _texture(1), _texture(2)
+    pairs = [_card_view(i, _camera(a), card_tex, plate_tex)
+             for i, a in enumerate([0.0, -9.0, 9.0, -18.0, 18.0])]
+    views, truth = [p[0] for p in pairs], pairs[0][1]
+    food = views[0].food
+    inside_px = ndimage.distance_transform_edt(food)
+    rim = food & (inside_px <= 3)
+    near_far = (0.8 * truth.min(), 1.2 * truth.max())
+
+    def rim_errors(cfg: DenseConfig) -> np.ndarray:
+        got = estimate_depth(views, 0, [1, 2, 3, 4], near_far, cfg).depth_m[rim]
+        return np.abs(got[got > 0] - truth[rim][got > 0]) / truth[rim][got > 0]
+
+    whole, food_only = rim_errors(DenseConfig()), rim_errors(DenseConfig(food_window_erode_px=1))
+    print("rim relative error p75: whole windows", np.percentile(whole, 75),
+          "food-only windows", np.percentile(food_only, 75))
+    assert np.percentile(food_only, 75) < 0.5 * np.percentile(whole, 75)
+    assert len(food_only) > 0.5 * rim.sum()
