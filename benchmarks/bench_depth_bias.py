@@ -27,7 +27,13 @@ import cv2
 import numpy as np
 import pandas as pd
 
-from volec.dense import _window_stats, depth_maps, plan_dense, surface_cosines
+from volec.dense import (
+    _window_stats,
+    depth_maps,
+    inside_outline_px,
+    plan_dense,
+    surface_cosines,
+)
 from volec.estimate import EstimateConfig, with_settings
 from volec.experiments import map_items, scenario_capture, scenarios
 from volec.paths import experiment_dir, figures_dir
@@ -80,7 +86,7 @@ def pixel_errors(item: str, scenario_name: str, settings: tuple[str, ...]) -> pd
             food &= np.isfinite(exact_depth)
             cosine = surface_cosines(view, np.where(np.isfinite(exact_depth), exact_depth, 0))
             got = depth_map.depth_m
-            outline_px = cv2.distanceTransform(food.astype(np.uint8), cv2.DIST_L2, 5)
+            outline_px = inside_outline_px(food)
             rows.append(pd.DataFrame({
                 "item": item, "config": name, "texture": _window_std(view.gray)[food],
                 "cosine": cosine[food], "outline_px": outline_px[food],

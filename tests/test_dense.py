@@ -412,6 +412,15 @@ def test_a_median_window_opencv_cannot_filter_is_refused():
                    DenseConfig(refine_median_px=4))
 
 
+def test_food_only_windows_with_a_faint_window_are_refused():
+    from volec.dense import plan_dense
+    from volec.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="food_window_erode_px"):
+        plan_dense(None, None, np.zeros((0, 4, 4)), np.zeros(0, bool), np.zeros((0, 3)),
+                   DenseConfig(food_window_erode_px=2, faint_window_px=11))
+
+
 def test_refining_from_the_neighbours_median_gets_more_of_a_faint_plane_right(plane_scene):
     # A skin with 3 % of the texture's contrast: the first sweep's peak is wrong at many
     # pixels, and refined from there a pixel stays wrong and bends its neighbours' windows.

@@ -998,6 +998,9 @@ def plan_dense(capture: Capture, masks: MaskSet | None, T_world_from_cam: np.nda
         raise ConfigError("faint_window_px must be 0, or odd and larger than ncc_window_px")
     if cfg.coarse_factor < 1 or cfg.refine_span_planes <= 0:
         raise ConfigError("coarse_factor must be 1 or more and refine_span_planes positive")
+    if cfg.food_window_erode_px and cfg.faint_window_px:
+        raise ConfigError("food_window_erode_px and faint_window_px cannot be combined: the "
+                          "food-only windows have the small window's size")
     if cfg.refine_median_px not in (0, 3, 5):
         raise ConfigError("refine_median_px must be 0, 3 or 5 (OpenCV's float median filter)")
     if len(T_world_from_cam) != len(capture) or len(registered) != len(capture):
@@ -1042,15 +1045,20 @@ def depth_maps(plan: DensePlan, sparse_xyz: np.ndarray, cfg: DenseConfig,
     return maps, ranges
 
 
+def inside_outline_px(mask: np.ndarray) -> np.ndarray:
+    """(H, W) float32: how far each pixel of the bool ``mask`` lies inside its outline,
+    pixels (OpenCV's Euclidean distance transform, 5x5 mask); 0 outside."""
+    import cv2
+
+    return cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, 5)
+
+
 def contour_band(view: View, margin_px: float) -> np.ndarray:
     """(H, W) bool: the pixels less than ``margin_px`` pixels inside ``view``'s food-mask
     outline (none without a mask or a margin)."""
-    import cv2
-
     if view.food is None or margin_px <= 0:
         return np.zeros(view.gray.shape, bool)
-    inside_px = cv2.distanceTransform(view.food.astype(np.uint8), cv2.DIST_L2, 5)
-    return view.food & (inside_px < margin_px)
+    return view.food & (inside_outline_px(view.food) < margin_px)
 
 
 def fuse_depth_maps(plan: DensePlan, maps: dict[int, DepthMap], cfg: DenseConfig
