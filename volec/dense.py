@@ -154,7 +154,10 @@ class DenseConfig:
     +0.8 mm). But the default estimate lost volume with it (MAPE 0.78 -> 1.25 % on the 21
     full orbits, p = 0.042, mean signed -0.26 -> -0.94 %; 1.40 -> 2.18 % on the ten faint
     skins) while without completion nothing changed (1.45 -> 1.47 %, 1.92 -> 1.95 %): the
-    completed meshes shrink on the changed clouds, not yet explained. Off until it is. Three
+    food-only windows lose the lowest band's depths, which each view sees near its outline
+    (apple: no masked point below 15.8 mm above the plate instead of 1.8 mm), and the
+    completion, which works from the cloud's lower edge, then places the underside further
+    in (README). Off: a food-only window must keep that band to help. Three
     more box filters per hypothesis: the dense stage took 7.1-8.5 s instead of 5.0-6.1 s
     (banana and apple full orbits, twice each, one capture at a time), more than issue 13's
     quarter. The texture test (``min_texture_std``) still takes the whole window's
