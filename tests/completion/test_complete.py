@@ -126,3 +126,23 @@ def test_volec_complete_with_the_shipped_upright_checkpoint_needs_up(tmp_path, c
     assert "--up" in capsys.readouterr().err and not out.exists()
     assert main(["complete", str(source), "--out", str(out), "--up", "0", "0", "1"]) == 0
     assert len(read_ply(out)) > 2000
+
+
+def test_resamplings_pool_predictions_from_other_subsets_of_the_partial():
+    from scipy.spatial import cKDTree
+
+    from volec.errors import ConfigError
+
+    partial = PointCloud(_cap())
+    one = complete_cloud(partial, _Identity(), CompletionConfig())
+    again = complete_cloud(partial, _Identity(), CompletionConfig(resamplings=1))
+    np.testing.assert_array_equal(one.predicted_xyz, again.predicted_xyz)
+    four = complete_cloud(partial, _Identity(), CompletionConfig(resamplings=4))
+    # the meshing gets as many predicted points as from one prediction ...
+    assert four.summary["predicted_points"] == one.summary["predicted_points"] == 256
+    # ... every one a partial point (the identity), and most from the other three subsets
+    assert cKDTree(partial.xyz).query(four.predicted_xyz)[0].max() < 1e-7
+    from_first = cKDTree(one.predicted_xyz).query(four.predicted_xyz)[0] < 1e-9
+    assert 0.1 < from_first.mean() < 0.5
+    with pytest.raises(ConfigError, match="resamplings"):
+        complete_cloud(partial, _Identity(), CompletionConfig(resamplings=0))

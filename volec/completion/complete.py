@@ -31,7 +31,7 @@ from volec.completion.preprocess import (
     remove_statistical_outliers,
     resample,
 )
-from volec.errors import VolecError
+from volec.errors import ConfigError, VolecError
 from volec.pointcloud import PREDICTED_RGB, PointCloud
 
 if TYPE_CHECKING:
@@ -63,6 +63,14 @@ class CompletionConfig:
     """Partial clouds with fewer points are refused."""
     seed: int = 0
     """Seeds the resampling of the partial to the network's input size."""
+    resamplings: int = 1
+    """How many times the partial is resampled to the network's input size and completed;
+    the predictions are pooled and a random share of one prediction's size kept, so the
+    meshing weighs them as it weighs one. Each resampling shows the network another subset
+    of the partial, and its points under an item move with it: on the benchmark's full-orbit
+    apple the network's volume was -0.58, -0.03, -1.78 and -0.23 % off with seeds 0-3, the
+    orange's +0.44, -0.15, -0.18 and -0.53 % (README, Completion). 1: one prediction, the
+    first of the seed's draws (the default)."""
 
 
 @dataclass(eq=False)
@@ -89,17 +97,28 @@ def complete_cloud(partial: PointCloud, model: SymmCompletion,
     start = time.perf_counter()
     norm = frame_normalization(partial.xyz, model.cfg.input_frame, up)
     rng = np.random.default_rng(cfg.seed)
-    x = norm.apply(resample(partial.xyz, model.cfg.n_input, rng))
+    runs = [_predict(model, norm.apply(resample(partial.xyz, model.cfg.n_input, rng)))
+            for _ in range(cfg.resamplings)]
+    out = np.concatenate(runs)
+    if len(runs) > 1:  # pooled, then thinned to one prediction's size
+        out = out[np.sort(rng.choice(len(out), len(runs[0]), replace=False))]
+    predicted = remove_statistical_outliers(norm.invert(out), cfg.outlier_neighbours,
+                                            cfg.outlier_std_ratio)
+    return merged_completion(partial, predicted, norm, cfg, len(out), start)
+
+
+def _predict(model: SymmCompletion, x: np.ndarray) -> np.ndarray:
+    """The network's completion (M, 3) of one normalised partial ``x`` (n_input, 3)."""
     device = next(model.parameters()).device
     model.eval()
     with torch.no_grad():
         out = model(torch.from_numpy(x[None]).float().to(device))[-1][0].cpu().numpy()
-    predicted = remove_statistical_outliers(norm.invert(out.astype(float)),
-                                            cfg.outlier_neighbours, cfg.outlier_std_ratio)
-    return merged_completion(partial, predicted, norm, cfg, len(out), start)
+    return out.astype(float)
 
 
 def _check_partial(partial: PointCloud, cfg: CompletionConfig) -> None:
+    if cfg.resamplings < 1:
+        raise ConfigError(f"completion resamplings must be 1 or more, not {cfg.resamplings}")
     if len(partial) < cfg.min_points:
         raise VolecError(
             f"the partial cloud has {len(partial)} points; completion needs at least "
