@@ -46,6 +46,7 @@ from volec.completion.complete import (
     Completion,
     CompletionConfig,
     complete_cloud,
+    merged_completion,
     mirror_completion,
     rotation_completion,
 )
@@ -377,13 +378,14 @@ def network_lacks_up(model: SymmCompletion | None, support: SupportPlane | None,
 
 
 def completed_cloud(masked: PointCloud, support: SupportPlane | None, up: np.ndarray | None,
-                    model: SymmCompletion | None, space: SpaceGrid | None, cfg: EstimateConfig
-                    ) -> Completion | None:
+                    model: SymmCompletion | None, space: SpaceGrid | None, cfg: EstimateConfig,
+                    shown: PointCloud | None = None) -> Completion | None:
     """The masked cloud completed as ``cfg.completion_method`` says, or None without
     completion (also when the network is asked for and ``model`` is None). Mirror and rotation
     work about the support normal, else ``up``; rotation keeps what lands in ``space``'s
     unknown part. ``auto`` turns the cloud where it is symmetric under the half-turn, then
-    lets the network complete what is still missing (:func:`symmetry_then_network`)."""
+    lets the network complete what is still missing (:func:`symmetry_then_network`). The
+    network is also shown the ``shown`` points (:func:`network_completion`)."""
     method = cfg.completion_method
     if not cfg.use_completion:
         return None
@@ -397,12 +399,27 @@ def completed_cloud(masked: PointCloud, support: SupportPlane | None, up: np.nda
                              "direction (world_up)")
         return rotation_completion(masked, plane_up, space, cfg.completion)
     if method == "auto" and plane_up is not None:
-        return symmetry_then_network(masked, plane_up, model, space, cfg.completion)
-    return None if model is None else complete_cloud(masked, model, cfg.completion, plane_up)
+        return symmetry_then_network(masked, plane_up, model, space, cfg.completion, shown)
+    return None if model is None else network_completion(masked, model, cfg.completion,
+                                                          plane_up, shown)
+
+
+def network_completion(partial: PointCloud, model: SymmCompletion, cfg: CompletionConfig,
+                       up: np.ndarray | None, shown: PointCloud | None) -> Completion:
+    """The network's completion of ``partial``, shown ``shown`` too (none: ``partial``
+    alone); the completed cloud is ``partial`` and the network's points, as
+    :func:`volec.completion.complete.complete_cloud` merges them."""
+    if shown is None or not len(shown):
+        return complete_cloud(partial, model, cfg, up)
+    start = time.perf_counter()
+    both = complete_cloud(PointCloud(np.concatenate([partial.xyz, shown.xyz])), model, cfg, up)
+    return merged_completion(partial, both.predicted_xyz, both.normalization, cfg,
+                             both.summary["predicted_points"], start)
 
 
 def symmetry_then_network(masked: PointCloud, up: np.ndarray, model: SymmCompletion | None,
-                          space: SpaceGrid | None, cfg: CompletionConfig) -> Completion | None:
+                          space: SpaceGrid | None, cfg: CompletionConfig,
+                          shown: PointCloud | None = None) -> Completion | None:
     """The masked cloud plus its half-turn about the vertical ``up`` where the turn maps it
     onto itself (:func:`volec.completion.complete.rotation_completion`), then the network's
     points farther than ``cfg.missing_only_gap_m`` from all of that (none without ``model``).
@@ -412,7 +429,7 @@ def symmetry_then_network(masked: PointCloud, up: np.ndarray, model: SymmComplet
     if model is None:
         return turned if turned.summary["symmetric"] else None
     start = turned.cloud if turned.summary["symmetric"] else masked
-    network = complete_cloud(start, model, cfg, up)
+    network = network_completion(start, model, cfg, up, shown)
     added = len(start) - len(masked)
     summary = {**network.summary, "partial_points": len(masked),
                "predicted_kept": added + network.summary["predicted_kept"],
@@ -456,7 +473,9 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     skipped = network_lacks_up(model, plane, up, cfg)
     if skipped is not None:
         log.warning("completion skipped: %s", skipped)
-    completion = None if skipped else completed_cloud(masked, plane, up, model, space, cfg)
+    shown = rims if cfg.rims.network_input else None
+    completion = None if skipped else completed_cloud(masked, plane, up, model, space, cfg,
+                                                      shown)
     completion_s = time.perf_counter() - start
     if completion is not None:
         cloud = completion.cloud

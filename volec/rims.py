@@ -60,6 +60,11 @@ class RimConfig:
     min_gap_m: float = 0.0015
     """Rim points nearer than this to an observed point are left out: there stereo
     measured the surface."""
+    network_input: bool = False
+    """Show the completion network the rim points beside the masked cloud (completion
+    methods ``network`` and ``auto``); its points are then merged with the masked cloud as
+    before. Stereo keeps few depths in an item's lowest band, and the network's points under
+    the item follow those few (README, Completion)."""
 
 
 def outline_rays(view: SilhouetteView, up: np.ndarray, cfg: RimConfig
