@@ -60,14 +60,6 @@ class RimConfig:
     min_gap_m: float = 0.0015
     """Rim points nearer than this to an observed point are left out: there stereo
     measured the surface."""
-    network_input: bool = False
-    """Show the completion network the rim points beside the masked cloud (completion
-    methods ``network`` and ``auto``); its points are then merged with the masked cloud as
-    before. Stereo keeps few depths in an item's lowest band, and the network's points under
-    the item follow those few: shown the rims, the full-orbit apple's network volume stays
-    +0.69 / +0.66 % with and without the masked points below 8 mm (-0.58 / -2.14 % without
-    the rims). Off: on the benchmark the default gained nothing (full orbits 0.78 -> 0.80 %,
-    half 1.20 -> 1.37 %, sparse 1.07 -> 1.17 %; README, Completion)."""
 
 
 def outline_rays(view: SilhouetteView, up: np.ndarray, cfg: RimConfig
