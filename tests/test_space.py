@@ -155,6 +155,49 @@ def test_a_patch_stereo_missed_leaves_the_food_behind_it_unknown_not_empty():
     assert (states[radius < 0.85 * R] == EMPTY).mean() == 0
 
 
+def _holed_sphere_on_a_plate() -> tuple[PointCloud, PointCloud, list, np.ndarray]:
+    """The full orbit's sphere with a patch stereo missed (as above), the plate around it
+    seen as the rest of the scene (points facing up), the views, and which grid points lie
+    well inside the sphere behind the patch (a function of the grid points)."""
+    cloud, views = _scene(360.0)
+    patch_centre = np.array([0.0, np.cos(np.radians(30)), np.sin(np.radians(30))])
+    holed = cloud.subset(~(cloud.normals @ patch_centre > np.cos(np.radians(35))))
+    rng = np.random.default_rng(5)
+    radius = R * np.sqrt(rng.uniform(0.25, 16.0, 40000))
+    angle = rng.uniform(0, 2 * np.pi, len(radius))
+    plate = np.stack([radius * np.cos(angle), radius * np.sin(angle), np.zeros_like(radius)], 1)
+    up = np.tile([0.0, 0.0, 1.0], (len(plate), 1))
+    scene = PointCloud(np.concatenate([holed.xyz, plate]), None,
+                       np.concatenate([holed.normals, up]))
+    return holed, scene, views, patch_centre
+
+
+def test_the_plate_behind_a_hole_does_not_empty_the_food_in_front_of_it():
+    # Through the missed patch a view's depth reaches the plate beyond the sphere (its points
+    # face the camera): drawn into the view, the whole scene says the space inside the sphere
+    # was seen through. Inside the food masks only the food cloud's depth counts.
+    holed, scene, views, patch_centre = _holed_sphere_on_a_plate()
+    states = {}
+    for only_food in (False, True):
+        cfg = SpaceConfig(food_depth_in_masks=only_food)
+        space = observed_space(holed, views, TABLE, cfg, scene=scene)
+        points = space.points()
+        inner = np.linalg.norm(points - CENTRE, axis=1) < 0.85 * R
+        states[only_food] = space.state.reshape(-1)[inner]
+    assert (states[False] == EMPTY).sum() > 20  # what the scene's depth did
+    assert not (states[True] == EMPTY).any()
+
+
+def test_one_view_seeing_through_does_not_empty_space_when_more_are_asked():
+    cloud, views = _scene(360.0)
+    two = observed_space(cloud, views, TABLE, SpaceConfig())
+    many = observed_space(cloud, views, TABLE, SpaceConfig(depth_min_views=len(views) + 1))
+    # no point is seen through by more views than there are: only the hull and the
+    # surface's front side empty space, so nothing the depth emptied stays empty
+    assert (many.state == EMPTY).sum() < (two.state == EMPTY).sum()
+    assert ((many.state == EMPTY) <= (two.state == EMPTY)).all()
+
+
 def test_the_points_of_a_state_are_those_the_whole_grid_gives():
     state = np.random.default_rng(0).choice([EMPTY, FOOD, UNKNOWN], size=(4, 5, 6)).astype(np.int8)
     grid = SpaceGrid(np.array([0.1, -0.2, 0.3]), 0.002, state)
