@@ -83,7 +83,8 @@ class SpaceConfig:
     space from 7.1 to 3.0 mL; both on, the default estimate's MAPE moved 0.784 -> 0.782 %
     (full orbits), 1.20 -> 1.15 % (half), 1.07 -> 1.17 % (sparse), 1.40 -> 1.35 % (faint
     skins); at 6, 0.784 -> 0.766 % (full), 1.20 -> 1.21 % (half), 1.07 -> 1.10 % (sparse),
-    faint skins and low orbits not yet run: 2 stays until they are (README, Volume bounds)."""
+    1.40 -> 1.37 % (faint skins), 1.81 -> 1.84 % (low), none beyond the noise: the next
+    default to try, with the tables made again (README, Volume bounds)."""
     depth_tolerance_m: float = 0.004
     """A point is in front of the surface a camera saw when nearer to it by more than this."""
     surface_reach_m: float = 0.003
