@@ -287,34 +287,3 @@ def test_with_setting_changes_one_field_typed_and_names_what_is_wrong():
                       ("dense.ncc_window_px", "SECTION.FIELD=VALUE")):
         with pytest.raises(ConfigError, match=says):
             with_setting(EstimateConfig(), bad)
-
-
-def test_the_network_can_be_shown_the_rim_points_without_meshing_them_twice():
-    import torch
-
-    from volec.completion.complete import CompletionConfig
-    from volec.completion.model import ModelConfig
-    from volec.estimate import network_completion
-    from volec.pointcloud import PointCloud
-
-    class Identity(torch.nn.Module):  # predicts the points it is shown
-        def __init__(self) -> None:
-            super().__init__()
-            self.cfg = ModelConfig(n_input=512, input_frame="upright")
-            self.dummy = torch.nn.Parameter(torch.zeros(1))
-
-        def forward(self, x):
-            return [x]
-
-    rng = np.random.default_rng(3)
-    top = PointCloud(rng.normal(size=(2000, 3)) * [0.02, 0.02, 0.01] + [0, 0, 0.06])
-    rims = PointCloud(rng.normal(size=(600, 3)) * [0.02, 0.02, 0.002])
-    up, cfg = np.array([0.0, 0.0, 1.0]), CompletionConfig()
-    alone = network_completion(top, Identity(), cfg, up, None)
-    shown = network_completion(top, Identity(), cfg, up, rims)
-    assert alone.predicted_xyz[:, 2].min() > 0.01  # only the top was shown
-    low = shown.predicted_xyz[:, 2] < 0.01  # the rim points, shown and so predicted
-    assert 0.1 < low.mean() < 0.4
-    # the completed cloud is the partial and the predictions: no rim point is merged in
-    np.testing.assert_array_equal(shown.cloud.xyz[:len(top)], top.xyz)
-    assert len(shown.cloud) == len(top) + len(shown.predicted_xyz)

@@ -188,12 +188,12 @@ def test_the_plate_behind_a_hole_does_not_empty_the_food_in_front_of_it():
     assert not (states[True] == EMPTY).any()
 
 
-def test_one_view_seeing_through_does_not_empty_space_when_more_are_asked():
+def test_space_seen_through_by_too_few_views_is_not_emptied():
     cloud, views = _scene(360.0)
     two = observed_space(cloud, views, TABLE, SpaceConfig())
     many = observed_space(cloud, views, TABLE, SpaceConfig(depth_min_views=len(views) + 1))
-    # no point is seen through by more views than there are: only the hull and the
-    # surface's front side empty space, so nothing the depth emptied stays empty
+    # More views than there are cannot agree: what the depths alone emptied is no longer
+    # empty, and only the hull and the surface's front side empty space.
     assert (many.state == EMPTY).sum() < (two.state == EMPTY).sum()
     assert ((many.state == EMPTY) <= (two.state == EMPTY)).all()
 

@@ -46,7 +46,6 @@ from volec.completion.complete import (
     Completion,
     CompletionConfig,
     complete_cloud,
-    merged_completion,
     mirror_completion,
     rotation_completion,
 )
@@ -395,7 +394,7 @@ def completed_cloud(masked: PointCloud, support: SupportPlane | None, up: np.nda
     work about the support normal, else ``up``; rotation keeps what lands in ``space``'s
     unknown part. ``auto`` turns the cloud where it is symmetric under the half-turn, then
     lets the network complete what is still missing (:func:`symmetry_then_network`). The
-    network is also shown the ``shown`` points (:func:`network_completion`)."""
+    network is also shown the ``shown`` points (:func:`complete_cloud`)."""
     method = cfg.completion_method
     if not cfg.use_completion:
         return None
@@ -410,21 +409,8 @@ def completed_cloud(masked: PointCloud, support: SupportPlane | None, up: np.nda
         return rotation_completion(masked, plane_up, space, cfg.completion)
     if method == "auto" and plane_up is not None:
         return symmetry_then_network(masked, plane_up, model, space, cfg.completion, shown)
-    return None if model is None else network_completion(masked, model, cfg.completion,
-                                                          plane_up, shown)
-
-
-def network_completion(partial: PointCloud, model: SymmCompletion, cfg: CompletionConfig,
-                       up: np.ndarray | None, shown: PointCloud | None) -> Completion:
-    """The network's completion of ``partial``, shown ``shown`` too (none: ``partial``
-    alone); the completed cloud is ``partial`` and the network's points, as
-    :func:`volec.completion.complete.complete_cloud` merges them."""
-    if shown is None or not len(shown):
-        return complete_cloud(partial, model, cfg, up)
-    start = time.perf_counter()
-    both = complete_cloud(PointCloud(np.concatenate([partial.xyz, shown.xyz])), model, cfg, up)
-    return merged_completion(partial, both.predicted_xyz, both.normalization, cfg,
-                             both.summary["predicted_points"], start)
+    return None if model is None else complete_cloud(masked, model, cfg.completion, plane_up,
+                                                      shown)
 
 
 def symmetry_then_network(masked: PointCloud, up: np.ndarray, model: SymmCompletion | None,
@@ -439,7 +425,7 @@ def symmetry_then_network(masked: PointCloud, up: np.ndarray, model: SymmComplet
     if model is None:
         return turned if turned.summary["symmetric"] else None
     start = turned.cloud if turned.summary["symmetric"] else masked
-    network = network_completion(start, model, cfg, up, shown)
+    network = complete_cloud(start, model, cfg, up, shown)
     added = len(start) - len(masked)
     summary = {**network.summary, "partial_points": len(masked),
                "predicted_kept": added + network.summary["predicted_kept"],

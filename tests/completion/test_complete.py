@@ -15,9 +15,9 @@ from volec.pointcloud import PointCloud, read_ply, write_ply
 class _Identity(torch.nn.Module):
     """Returns its input as the final stage: the completed points must be the partial's."""
 
-    def __init__(self) -> None:
+    def __init__(self, cfg: ModelConfig | None = None) -> None:
         super().__init__()
-        self.cfg = ModelConfig(n_input=256)
+        self.cfg = cfg or ModelConfig(n_input=256)
         self.dummy = torch.nn.Parameter(torch.zeros(1))
 
     def forward(self, x):
@@ -146,3 +146,19 @@ def test_resamplings_pool_predictions_from_other_subsets_of_the_partial():
     assert 0.1 < from_first.mean() < 0.5
     with pytest.raises(ConfigError, match="resamplings"):
         complete_cloud(partial, _Identity(), CompletionConfig(resamplings=0))
+
+
+def test_the_network_can_be_shown_the_rim_points_without_meshing_them_twice():
+    model = _Identity(ModelConfig(n_input=512, input_frame="upright"))
+    rng = np.random.default_rng(3)
+    top = PointCloud(rng.normal(size=(2000, 3)) * [0.02, 0.02, 0.01] + [0, 0, 0.06])
+    rims = PointCloud(rng.normal(size=(600, 3)) * [0.02, 0.02, 0.002])
+    up, cfg = np.array([0.0, 0.0, 1.0]), CompletionConfig()
+    alone = complete_cloud(top, model, cfg, up)
+    shown = complete_cloud(top, model, cfg, up, rims)
+    assert alone.predicted_xyz[:, 2].min() > 0.01  # only the top was shown
+    low = shown.predicted_xyz[:, 2] < 0.01  # the rim points, shown and so predicted
+    assert 0.1 < low.mean() < 0.4
+    # the completed cloud is the partial and the predictions: no rim point is merged in
+    np.testing.assert_array_equal(shown.cloud.xyz[:len(top)], top.xyz)
+    assert len(shown.cloud) == len(top) + len(shown.predicted_xyz)

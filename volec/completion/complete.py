@@ -90,16 +90,19 @@ class Completion:
 
 
 def complete_cloud(partial: PointCloud, model: SymmCompletion,
-                   cfg: CompletionConfig | None = None, up: np.ndarray | None = None
-                   ) -> Completion:
+                   cfg: CompletionConfig | None = None, up: np.ndarray | None = None,
+                   shown: PointCloud | None = None) -> Completion:
     """Complete ``partial`` with ``model`` (see the module docstring); ``up``, the support
-    plane's normal, frames the input for a model trained upright (ignored otherwise)."""
+    plane's normal, frames the input for a model trained upright (ignored otherwise). The
+    network is shown the ``shown`` points beside ``partial`` (the rim points, say); its
+    predictions are merged with ``partial`` alone."""
     cfg = cfg or CompletionConfig()
-    _check_partial(partial, cfg)
+    seen = partial.xyz if shown is None else np.concatenate([partial.xyz, shown.xyz])
+    _check_partial(PointCloud(seen), cfg)
     start = time.perf_counter()
-    norm = frame_normalization(partial.xyz, model.cfg.input_frame, up)
+    norm = frame_normalization(seen, model.cfg.input_frame, up)
     rng = np.random.default_rng(cfg.seed)
-    runs = [_predict(model, norm.apply(resample(partial.xyz, model.cfg.n_input, rng)))
+    runs = [_predict(model, norm.apply(resample(seen, model.cfg.n_input, rng)))
             for _ in range(cfg.resamplings)]
     out = np.concatenate(runs)
     if len(runs) > 1:  # pooled, then thinned to one prediction's size
