@@ -190,7 +190,7 @@ def test_the_plate_behind_a_hole_does_not_empty_the_food_in_front_of_it():
 
 def test_space_seen_through_by_too_few_views_is_not_emptied():
     cloud, views = _scene(360.0)
-    two = observed_space(cloud, views, TABLE, SpaceConfig())
+    two = observed_space(cloud, views, TABLE, SpaceConfig(depth_min_views=2))
     many = observed_space(cloud, views, TABLE, SpaceConfig(depth_min_views=len(views) + 1))
     # More views than there are cannot agree: what the depths alone emptied is no longer
     # empty, and only the hull and the surface's front side empty space.
