@@ -22,6 +22,7 @@ import argparse
 from volec.estimate import EstimateConfig, with_setting
 from volec.experiments import (
     method_table,
+    pose_scale_errors,
     scenarios,
     surface_offset_table,
     volume_experiment,
@@ -43,10 +44,12 @@ def main() -> None:
     cfg = EstimateConfig()
     for setting in args.set:
         cfg = with_setting(cfg, setting)
-    raw = volume_experiment(experiment_dir(False), args.items, scenarios(False)[args.scenario],
-                            cfg, workers=args.workers)
+    scenario = scenarios(False)[args.scenario]
+    raw = volume_experiment(experiment_dir(False), args.items, scenario, cfg,
+                            workers=args.workers)
+    scale_err_pct = pose_scale_errors(experiment_dir(False), args.items, scenario)
     for name, table in (("table1_volume", volume_table(raw)),
-                        ("surface_offset", surface_offset_table(raw)),
+                        ("surface_offset", surface_offset_table(raw, scale_err_pct=scale_err_pct)),
                         ("table2", method_table(raw))):
         write_table(table, figures_dir() / f"{name}_{args.scenario}", float_digits=3)
         print(table.to_string(index=False, float_format=lambda x: f"{x:.3f}"))

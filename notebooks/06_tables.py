@@ -30,6 +30,7 @@ offset_items = ["pear", "banana", "chocolate_croissant"]
 # %%
 from volec.experiments import (
     paired_tests,
+    pose_scale_errors,
     qualitative_panels,
     runtime_table,
     scenarios,
@@ -83,10 +84,12 @@ table3
 # volume) beside the volume error; then how far the poses misplaced the mesh and its signed
 # distances once rigidly aligned to the truth (the shape's own offset; the misplacement moves the
 # whole mesh and does not change its volume). A systematic offset of a fraction of a millimetre
-# is a few percent of volume. The figure shows the aligned meshes.
+# is a few percent of volume. Last, the error of the metric scale SfM took from the AR poses
+# (against the exact poses; the AR drift leaves it) and the volume error the estimate would
+# have at the exact scale: what the shape alone gets wrong. The figure shows the aligned meshes.
 
 # %%
-offsets = surface_offset_table(raw)
+offsets = surface_offset_table(raw, scale_err_pct=pose_scale_errors(root, items, scenario))
 write_table(offsets, figures_dir() / "surface_offset", float_digits=3)
 offsets
 

@@ -45,7 +45,7 @@ from volec.pipeline import StageResults, config_record, run_sfm_stage, run_stage
 from volec.progress import step
 from volec.provenance import code_identity, file_digest, module_digest
 from volec.segment import given_masks
-from volec.sfm import SfmConfig, evaluate_sfm
+from volec.sfm import SfmConfig, evaluate_sfm, load_sfm
 from volec.synth import PRESETS as SYNTH_PRESETS
 from volec.synth import SynthConfig, load_ground_truth_mesh, write_synthetic_capture
 from volec.synth.generate import is_current
@@ -1238,13 +1238,35 @@ def volume_table(raw: pd.DataFrame, masks: pd.DataFrame | None = None) -> pd.Dat
     return pd.concat([table, means], ignore_index=True)
 
 
-def surface_offset_table(raw: pd.DataFrame, tag: str = "completion") -> pd.DataFrame:
+def pose_scale_errors(root: Path, items: list[str], scenario: Scenario) -> pd.Series:
+    """Per item of :func:`volume_experiment` (indexed by item name), the error of the metric
+    scale its SfM stage took from the AR poses, percent: :func:`volec.sfm.evaluate_sfm`
+    against the exact poses of the same frames (for scoring only). Every length of the
+    estimate carries it, and its volume three times over."""
+    errors = {}
+    for item in items:
+        folder = ensure_capture(root, item, scenario)
+        try:
+            sfm = load_sfm(scenario.work(folder))
+        except FileNotFoundError:  # the item's SfM failed: its row says why
+            errors[item] = float("nan")
+            continue
+        errors[item] = evaluate_sfm(sfm, scenario_capture(folder, scenario, exact=True),
+                                    scenario_capture(folder, scenario))["scale_err_pct"]
+    return pd.Series(errors, name="scale_err_pct", dtype=float)
+
+
+def surface_offset_table(raw: pd.DataFrame, tag: str = "completion", *,
+                         scale_err_pct: pd.Series | None = None) -> pd.DataFrame:
     """Per item, how far the masked cloud and the final mesh (of variant ``tag``) lie outside
     (+) or inside (-) the true surface, in mm (median, 10th and 90th percentile of signed
     distances), the volume the mesh's offset implies (mean signed distance times area, as a
     percentage of the true volume), how far the poses misplaced the mesh and its signed
-    distances once rigidly aligned (the shape's own offset), beside the volume error; then the
-    means and the means of magnitudes."""
+    distances once rigidly aligned (the shape's own offset), beside the volume error; with
+    the poses' scale errors (:func:`pose_scale_errors`, by item name), also those and the
+    volume error the estimate would have at the exact scale (its volume divided by the cube
+    of the scale's factor: what the shape alone gets wrong); then the means and the means of
+    magnitudes."""
     table = pd.DataFrame({"item": raw["label"]})
     for source, prefix in (("cloud", "masked"), ("mesh", f"{tag}_mesh")):
         for stat in ("median", "p10", "p90"):
@@ -1254,6 +1276,11 @@ def surface_offset_table(raw: pd.DataFrame, tag: str = "completion") -> pd.DataF
     for stat in ("median", "p10", "p90"):
         table[f"aligned_mesh_signed_{stat}_mm"] = 1000 * raw[f"{tag}_mesh_aligned_signed_{stat}_m"]
     table["volume_error_pct"] = 100 * (raw[f"{tag}_ml"] / raw["gt_ml"] - 1)
+    if scale_err_pct is not None:
+        factor = 1 + raw["item"].map(scale_err_pct) / 100
+        table["scale_err_pct"] = 100 * (factor - 1)
+        table["volume_error_exact_scale_pct"] = 100 * (raw[f"{tag}_ml"] / raw["gt_ml"]
+                                                       / factor ** 3 - 1)
     means = table.drop(columns="item").mean().to_frame().T
     means.insert(0, "item", "mean")
     abs_means = table.drop(columns="item").abs().mean().to_frame().T
