@@ -41,6 +41,8 @@ def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys
     assert {"sfm_s", "dense_s", "masking_s", "completion_s", "meshing_s"} <= set(
         result["stage_seconds"])
     assert result["frames"] == {"total": 16, "registered": 16}
+    # over a 100-degree arc stereo measures part of the surface, never all of it
+    assert 0.05 < result["measured_surface_share"] < 0.95
     assert result["keyframes"]["frames_in"] == 16 == result["keyframes"]["frames_kept"]
     # every registered view's silhouette carved the mesh (and those reflected in the cake's
     # mirror plane that agree with its cloud), and carved only a small part of it
@@ -287,3 +289,17 @@ def test_with_setting_changes_one_field_typed_and_names_what_is_wrong():
                       ("dense.ncc_window_px", "SECTION.FIELD=VALUE")):
         with pytest.raises(ConfigError, match=says):
             with_setting(EstimateConfig(), bad)
+
+
+def test_the_measured_share_of_a_sphere_seen_on_its_upper_half_is_a_half():
+    from volec.estimate import measured_surface_share
+    from volec.metrics import sample_surface
+
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=0.03)
+    points = sample_surface(sphere, 200000, seed=1)  # 0.15 mm apart: reach 1 mm covers all
+    upper = points[points[:, 2] > 0]
+    assert measured_surface_share(sphere, points, 0.001) == pytest.approx(1.0, abs=1e-3)
+    # a reach of 1 mm adds a band 1 mm wide below the equator: 2 pi R w of 4 pi R^2
+    half = 0.5 + 0.001 / (2 * 0.03)
+    assert measured_surface_share(sphere, upper, 0.001) == pytest.approx(half, abs=0.005)
+    assert measured_surface_share(sphere, np.zeros((0, 3)), 0.001) == 0.0

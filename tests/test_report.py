@@ -33,6 +33,7 @@ def _record(trusted: bool = False) -> dict:
     return {
         "volume_ml": 33.51, "trusted": trusted, "completion_used": True,
         "volume_bounds_ml": [30.2, 41.75], "unknown_share": 0.31, "high_open": False,
+        "measured_surface_share": 0.574,
         "reasons": [] if trusted else [{"code": "narrow_orbit",
                                         "message": "the cameras span only 150 degrees"}],
         "warnings": [] if trusted else ["the cameras span only 150 degrees <b>"],
@@ -91,6 +92,7 @@ def test_the_report_holds_the_geometry_and_names_no_outside_resource():
     # what the record says reaches the page, escaped
     assert "33.5 mL" in page and "narrow_orbit" in page
     assert "Between 30.2 and 41.8 mL" in page and "31 %" in page
+    assert "57 % of the mesh" in page and "within a millimetre of a measured point" in page
     assert "&lt;b&gt;" in page and "/data/apple&lt;/script&gt;" in page
 
 

@@ -146,7 +146,18 @@ def bounds_sentence(record: dict[str, Any]) -> str:
     return (f"Between {low:.1f} and {high:.1f} mL{more} from what the cameras saw: the estimate "
             "with the space no camera constrained taken as empty, and as food. "
             f"{100 * record['unknown_share']:.0f} % of the estimate lies in that space, where "
-            "only the shape prior decides.")
+            "only the shape prior decides." + measured_sentence(record))
+
+
+def measured_sentence(record: dict[str, Any]) -> str:
+    """How much of the surface was measured, as a sentence that starts with a space (empty for
+    a ``result.json`` record made before volec reported it). The bounds take the measured
+    surface as right."""
+    share = record.get("measured_surface_share")
+    if share is None:
+        return ""
+    return (f" {100 * share:.0f} % of the mesh's surface lies within a millimetre of a "
+            "measured point; the bounds take that surface as right.")
 
 
 def _bounds_html(record: dict[str, Any]) -> str:
