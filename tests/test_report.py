@@ -92,7 +92,7 @@ def test_the_report_holds_the_geometry_and_names_no_outside_resource():
     # what the record says reaches the page, escaped
     assert "33.5 mL" in page and "narrow_orbit" in page
     assert "Between 30.2 and 41.8 mL" in page and "31 %" in page
-    assert "57 % of the mesh" in page and "within a millimetre of a measured point" in page
+    assert "57 % of the mesh" in page and "within 1 mm of a measured point" in page
     assert "&lt;b&gt;" in page and "/data/apple&lt;/script&gt;" in page
 
 

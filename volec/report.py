@@ -156,7 +156,8 @@ def measured_sentence(record: dict[str, Any]) -> str:
     share = record.get("measured_surface_share")
     if share is None:
         return ""
-    return (f" {100 * share:.0f} % of the mesh's surface lies within a millimetre of a "
+    reach_mm = 1000 * record.get("config", {}).get("measured_reach_m", 0.001)
+    return (f" {100 * share:.0f} % of the mesh's surface lies within {reach_mm:g} mm of a "
             "measured point; the bounds take that surface as right.")
 
 
