@@ -33,7 +33,7 @@ def _record(trusted: bool = False) -> dict:
     return {
         "volume_ml": 33.51, "trusted": trusted, "completion_used": True,
         "volume_bounds_ml": [30.2, 41.75], "unknown_share": 0.31, "high_open": False,
-        "measured_surface_share": 0.574,
+        "measured_surface_share": 0.574, "config": {"measured_reach_m": 0.001},
         "reasons": [] if trusted else [{"code": "narrow_orbit",
                                         "message": "the cameras span only 150 degrees"}],
         "warnings": [] if trusted else ["the cameras span only 150 degrees <b>"],

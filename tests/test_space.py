@@ -136,15 +136,20 @@ def test_the_visual_hull_holds_the_sphere_and_is_closed():
     assert hull.bounds[0, 2] > -SpaceConfig().pitch_m
 
 
+def _holed_sphere() -> tuple[PointCloud, list, np.ndarray]:
+    """The full orbit's sphere with a patch 35 degrees across that dense stereo missed, the
+    views, and the unit direction of the patch's centre from the sphere's."""
+    cloud, views = _scene(360.0)
+    patch_centre = np.array([0.0, np.cos(np.radians(30)), np.sin(np.radians(30))])
+    holed = cloud.subset(~(cloud.normals @ patch_centre > np.cos(np.radians(35))))
+    return holed, views, patch_centre
+
+
 def test_a_patch_stereo_missed_leaves_the_food_behind_it_unknown_not_empty():
     # The cameras saw the sphere there (the pixels are inside its masks) but dense stereo
     # found no point: the space behind that patch was not seen through, whatever lies
     # beyond it in the picture.
-    cloud, views = _scene(360.0)
-    patch_centre = np.array([0.0, np.cos(np.radians(30)), np.sin(np.radians(30))])
-    normals = cloud.normals
-    missed = normals @ patch_centre > np.cos(np.radians(35))
-    holed = cloud.subset(~missed)
+    holed, views, patch_centre = _holed_sphere()
     space = observed_space(holed, views, TABLE, SpaceConfig())
     points = space.points()
     states = space.state.reshape(-1)
@@ -155,13 +160,10 @@ def test_a_patch_stereo_missed_leaves_the_food_behind_it_unknown_not_empty():
     assert (states[radius < 0.85 * R] == EMPTY).mean() == 0
 
 
-def _holed_sphere_on_a_plate() -> tuple[PointCloud, PointCloud, list, np.ndarray]:
-    """The full orbit's sphere with a patch stereo missed (as above), the plate around it
-    seen as the rest of the scene (points facing up), the views, and which grid points lie
-    well inside the sphere behind the patch (a function of the grid points)."""
-    cloud, views = _scene(360.0)
-    patch_centre = np.array([0.0, np.cos(np.radians(30)), np.sin(np.radians(30))])
-    holed = cloud.subset(~(cloud.normals @ patch_centre > np.cos(np.radians(35))))
+def _holed_sphere_on_a_plate() -> tuple[PointCloud, PointCloud, list]:
+    """The full orbit's sphere with a patch stereo missed (:func:`_holed_sphere`), the plate
+    around it seen as the rest of the scene (points facing up), and the views."""
+    holed, views, _ = _holed_sphere()
     rng = np.random.default_rng(5)
     radius = R * np.sqrt(rng.uniform(0.25, 16.0, 40000))
     angle = rng.uniform(0, 2 * np.pi, len(radius))
@@ -169,14 +171,14 @@ def _holed_sphere_on_a_plate() -> tuple[PointCloud, PointCloud, list, np.ndarray
     up = np.tile([0.0, 0.0, 1.0], (len(plate), 1))
     scene = PointCloud(np.concatenate([holed.xyz, plate]), None,
                        np.concatenate([holed.normals, up]))
-    return holed, scene, views, patch_centre
+    return holed, scene, views
 
 
 def test_the_plate_behind_a_hole_does_not_empty_the_food_in_front_of_it():
     # Through the missed patch a view's depth reaches the plate beyond the sphere (its points
     # face the camera): drawn into the view, the whole scene says the space inside the sphere
     # was seen through. Inside the food masks only the food cloud's depth counts.
-    holed, scene, views, patch_centre = _holed_sphere_on_a_plate()
+    holed, scene, views = _holed_sphere_on_a_plate()
     states = {}
     for only_food in (False, True):
         cfg = SpaceConfig(food_depth_in_masks=only_food)

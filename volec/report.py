@@ -150,13 +150,14 @@ def bounds_sentence(record: dict[str, Any]) -> str:
 
 
 def measured_sentence(record: dict[str, Any]) -> str:
-    """How much of the surface was measured, as a sentence that starts with a space (empty for
-    a ``result.json`` record made before volec reported it). The bounds take the measured
+    """How much of the surface was measured (within the record's config's
+    ``measured_reach_m``), as a sentence that starts with a space (empty for a
+    ``result.json`` record made before volec reported it). The bounds take the measured
     surface as right."""
     share = record.get("measured_surface_share")
     if share is None:
         return ""
-    reach_mm = 1000 * record.get("config", {}).get("measured_reach_m", 0.001)
+    reach_mm = 1000 * record["config"]["measured_reach_m"]
     return (f" {100 * share:.0f} % of the mesh's surface lies within {reach_mm:g} mm of a "
             "measured point; the bounds take that surface as right.")
 
