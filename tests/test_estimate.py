@@ -75,6 +75,13 @@ def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys
     low, high = result["volume_bounds_ml"]
     assert low <= result["volume_ml"] <= high and 0 <= result["unknown_share"] <= 1
     assert f"{low:.1f}" in page and "bounds_s" in result["stage_seconds"]
+    # the AR poses' scale is uncertain by a fraction of a percent under the drift model, and
+    # the interval widens the bounds by its two standard deviations, cubed
+    std = result["scale_std_pct"] / 100
+    assert 0.0005 < std < 0.05
+    wide_low, wide_high = result["volume_interval_ml"]
+    assert wide_low == pytest.approx(low * (1 - 2 * std) ** 3, abs=0.01)
+    assert wide_high == pytest.approx(high * (1 + 2 * std) ** 3, abs=0.01)
     assert f"{result['volume_ml']:.1f} mL" in page and 'id="volec-data"' in page
     # the mesh a standard tool opens is closed and holds the volume reported
     mesh = trimesh.load(out / "mesh.ply")

@@ -14,6 +14,7 @@ from volec.experiments import (
     DEFAULT_METHOD,
     METHODS,
     Scenario,
+    bounds_summary,
     cached_row,
     frame_subset,
     map_items,
@@ -184,6 +185,34 @@ def test_the_offset_table_takes_the_poses_scale_out_of_the_volume_error():
     assert table.loc["Apple", "volume_error_pct"] == pytest.approx(3.0301)
     assert table.loc["Apple", "scale_err_pct"] == pytest.approx(1.0)
     assert table.loc["Apple", "volume_error_exact_scale_pct"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_the_bounds_summary_counts_what_holds_the_truth_over_the_items_that_ran():
+    def row(item, gt, ml, trusted, bounds, interval, unknown, std):
+        return {"item": item, "gt_ml": gt, "completion_ml": ml, "completion_trusted": trusted,
+                "completion_low_ml": bounds[0], "completion_high_ml": bounds[1],
+                "completion_interval_low_ml": interval[0],
+                "completion_interval_high_ml": interval[1],
+                "completion_unknown_share": unknown, "scale_std_pct": std}
+
+    raw = pd.DataFrame([
+        row("apple", 100.0, 103.0, True, (101.0, 104.0), (98.0, 106.0), 0.1, 0.5),
+        {"item": "banana", "gt_ml": 150.0, "error": "SfmError: the AR poses disagree"},
+        row("pear", 200.0, 199.0, True, (190.0, 210.0), (185.0, 215.0), 0.2, 0.25),
+        row("lemon", 50.0, 52.0, False, (51.0, 53.0), (50.5, 54.0), 0.3, 0.4),
+    ]).assign(scenario="sparse")
+    errors = pd.Series({"apple": 1.0, "banana": 0.3, "pear": -0.25, "lemon": 1.2})
+    summary = bounds_summary(raw, scale_err_pct=errors).iloc[0]
+    assert summary["scenario"] == "sparse"
+    assert (summary["items"], summary["trusted"], summary["trusted_over_2pct"]) == (3, 2, 1)
+    assert summary["unknown_share_mean"] == pytest.approx(0.2)
+    assert (summary["bounds_hold"], summary["interval_hold"]) == (1, 2)
+    assert summary["bounds_width_pct"] == pytest.approx((3 + 10 + 4) / 3)
+    assert summary["interval_width_pct"] == pytest.approx((8 + 15 + 7) / 3)
+    assert summary["scale_std_pct_mean"] == pytest.approx(1.15 / 3)
+    assert summary["scale_z_rms"] == pytest.approx(np.sqrt((4 + 1 + 9) / 3))
+    assert summary["scale_within_2_std"] == 2
+    assert "scale_z_rms" not in bounds_summary(raw).columns
 
 
 def test_the_poses_scale_error_is_the_similarity_between_sfm_and_exact_centres(

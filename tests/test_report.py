@@ -33,7 +33,8 @@ def _record(trusted: bool = False) -> dict:
     return {
         "volume_ml": 33.51, "trusted": trusted, "completion_used": True,
         "volume_bounds_ml": [30.2, 41.75], "unknown_share": 0.31, "high_open": False,
-        "measured_surface_share": 0.574, "config": {"measured_reach_m": 0.001},
+        "measured_surface_share": 0.574, "volume_interval_ml": [28.41, 44.3],
+        "scale_std_pct": 0.3125, "config": {"measured_reach_m": 0.001, "scale_sigmas": 2.0},
         "reasons": [] if trusted else [{"code": "narrow_orbit",
                                         "message": "the cameras span only 150 degrees"}],
         "warnings": [] if trusted else ["the cameras span only 150 degrees <b>"],
@@ -93,7 +94,20 @@ def test_the_report_holds_the_geometry_and_names_no_outside_resource():
     assert "33.5 mL" in page and "narrow_orbit" in page
     assert "Between 30.2 and 41.8 mL" in page and "31 %" in page
     assert "57 % of the mesh" in page and "within 1 mm of a measured point" in page
+    assert "2 standard deviations of 0.31 % in length" in page
+    assert "between 28.4 and 44.3 mL" in page
     assert "&lt;b&gt;" in page and "/data/apple&lt;/script&gt;" in page
+
+
+def test_the_bounds_say_when_the_scales_uncertainty_is_not_in_them():
+    from volec.report import bounds_sentence
+
+    record = {**_record(), "scale_std_pct": None, "volume_interval_ml": [30.2, 41.75]}
+    assert "uncertainty is not known" in bounds_sentence(record)
+    # a record made before volec reported the interval says only what it holds
+    old = {k: v for k, v in _record().items() if k not in ("scale_std_pct",
+                                                          "volume_interval_ml")}
+    assert "scale" not in bounds_sentence(old)
 
 
 def test_large_clouds_and_meshes_are_sampled_for_the_view_only():

@@ -14,7 +14,9 @@ re-run reuses the finished SfM, dense and masking stages, and a finished estimat
   stage times and warnings; opens offline in any browser;
 - ``report.md`` with pictures in ``report/``;
 - ``result.json``: ``volume_ml``, ``volume_bounds_ml`` and ``unknown_share`` (how far the volume
-  may be off from what no camera constrained, :mod:`volec.space`), ``measured_surface_share``
+  may be off from what no camera constrained, :mod:`volec.space`), ``scale_std_pct`` and
+  ``volume_interval_ml`` (the metric scale's uncertainty, and the bounds widened by it,
+  :mod:`volec.scale_uncertainty`), ``measured_surface_share``
   (how much of the mesh's surface was measured), ``trusted`` and the
   ``reasons`` it is not (:mod:`volec.trust`),
   warnings, frames used, per-stage wall time, the support plane, the scale's source, the
@@ -32,6 +34,7 @@ written atomically, and an earlier result made from other inputs is refused unle
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
@@ -98,6 +101,7 @@ from volec.provenance import capture_identity, file_digest, json_data, stage_pro
 from volec.report import ReportScene, bounds_sentence, write_report_html
 from volec.rims import RimConfig, rim_points
 from volec.scale import ScaleCheck, ScaleConfig, require_metric
+from volec.scale_uncertainty import sfm_scale_std, volume_interval
 from volec.segment import MaskSet, SegmentConfig, given_masks
 from volec.sfm import SfmConfig
 from volec.space import (
@@ -185,6 +189,11 @@ class EstimateConfig:
     space: SpaceConfig = field(default_factory=SpaceConfig)
     """How the space around the food is sorted into empty, food and unknown for the volume
     bounds (:mod:`volec.space`)."""
+    scale_sigmas: float = 2.0
+    """How many standard deviations of the metric scale (:mod:`volec.scale_uncertainty`)
+    ``volume_interval_ml`` adds on each side of the bounds: 2 holds the scale's error about
+    95 % of the time if the AR noise is what ``sfm.ar_jitter_m`` and
+    ``sfm.ar_drift_m_per_sqrt_frame`` say."""
     rims: RimConfig = field(default_factory=RimConfig)
     """Where the food masks' outlines place the surface under the item's widest level, mesh
     with those points too (:mod:`volec.rims`; only with carving silhouettes)."""
@@ -270,6 +279,13 @@ class Estimate:
     no reflected views were asked for)."""
     rims: dict[str, Any] | None = None
     """How the rim points were found (:func:`volec.rims.rim_points`; None: none were)."""
+    scale_std: float = math.nan
+    """Standard deviation of the metric scale, a fraction of it (NaN: not known, the poses'
+    metres were not the AR tracking's; :func:`volec.scale_uncertainty.sfm_scale_std`)."""
+    volume_interval_ml: tuple[float, float] = (math.nan, math.nan)
+    """``bounds`` widened by the scale's uncertainty
+    (:func:`volec.scale_uncertainty.volume_interval`): how far the volume may be off from
+    what nobody saw and from the metric scale together."""
 
     @property
     def trusted(self) -> bool:
@@ -791,6 +807,8 @@ def estimate_from_basis(capture: Capture, stages: StageResults, model: SymmCompl
         far_point_fraction=report.get("far_points_dropped", 0) / max(report["points_in"], 1),
         unknown_share=bounds.unknown_share,
     )
+    scale_std = (sfm_scale_std(sfm, cfg.sfm) if scale is None or scale.source == "file"
+                 else math.nan)
     reasons = assess(facts, cfg.trust)
     warnings = [r.message for r in reasons] + _notes(capture, stages, food, scale,
                                                      food.completion_summary is not None)
@@ -798,7 +816,8 @@ def estimate_from_basis(capture: Capture, stages: StageResults, model: SymmCompl
         warnings.append(f"{len(left_out)} masks left out part of the food and did not carve "
                         f"the mesh: {', '.join(v.name for v in left_out)}")
     return Estimate(food, reasons, warnings, coverage, view_up, bounds, bounds_s,
-                    tuple(v.name for v in left_out), mirror_record, basis.rims_record)
+                    tuple(v.name for v in left_out), mirror_record, basis.rims_record,
+                    scale_std, volume_interval(bounds, scale_std, cfg.scale_sigmas))
 
 
 def report_pictures(result: FoodMesh, up: np.ndarray, folder: Path, masked: PointCloud
@@ -891,6 +910,8 @@ def estimate_record(capture: Capture, stages: StageResults, est: Estimate, cfg: 
     return {
         "volume_ml": food.volume_ml,
         **est.bounds.record(),
+        "volume_interval_ml": [round(v, 2) for v in est.volume_interval_ml],
+        "scale_std_pct": None if math.isnan(est.scale_std) else round(100 * est.scale_std, 4),
         "trusted": est.trusted,
         "reasons": [r.record() for r in est.reasons],
         "warnings": est.warnings,

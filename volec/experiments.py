@@ -774,9 +774,12 @@ def volume_row(root: Path, item: str, scenario: Scenario, cfg: EstimateConfig,
                     f"{tag}_completion_share": made.completion_share,
                     f"{tag}_measured_surface_share": made.measured_surface_share,
                     f"{tag}_low_ml": est.bounds.low_ml, f"{tag}_high_ml": est.bounds.high_ml,
+                    f"{tag}_interval_low_ml": est.volume_interval_ml[0],
+                    f"{tag}_interval_high_ml": est.volume_interval_ml[1],
                     f"{tag}_unknown_share": est.bounds.unknown_share,
                     **mesh_offset_scores(made.mesh.mesh, truth_mesh, prefix=f"{tag}_mesh"),
                     **{f"{tag}_{k}": v for k, v in made.seconds.items()}}
+        row["scale_std_pct"] = 100 * est.scale_std  # the same for every method
         row |= _ar_visual_hull_scores(capture, stages, cfg, basis.support[0], truth_points,
                                       silhouettes)
         return row
@@ -1287,6 +1290,38 @@ def surface_offset_table(raw: pd.DataFrame, tag: str = "completion", *,
     abs_means = table.drop(columns="item").abs().mean().to_frame().T
     abs_means.insert(0, "item", "mean abs")
     return pd.concat([table, means, abs_means], ignore_index=True)
+
+
+def bounds_summary(raw: pd.DataFrame, tag: str = "completion", *,
+                   scale_err_pct: pd.Series | None = None) -> pd.DataFrame:
+    """One row: how far the estimates of variant ``tag`` in ``raw`` (one scenario's
+    :func:`volume_experiment`) can be trusted. The scenario; how many items ran, how many
+    were trusted and how many of those were more than 2 % off; the mean share of the
+    estimate in unknown space; on how many items the space's bounds (``volume_bounds_ml``)
+    and the interval that adds the metric scale's uncertainty (``volume_interval_ml``) hold
+    the true volume, and their mean widths (% of the truth); the scale's mean standard
+    deviation (%); with the poses' scale errors (:func:`pose_scale_errors`, by item name),
+    the root mean square of each error over its standard deviation (1 where the AR noise
+    model is right) and on how many items it is within two of them."""
+    ran = raw[raw[f"{tag}_ml"].notna()] if f"{tag}_ml" in raw else raw.iloc[:0]
+    truth = ran["gt_ml"]
+    trusted = ran[f"{tag}_trusted"].astype(bool)
+    ape = 100 * (ran[f"{tag}_ml"] / truth - 1).abs()
+    row: dict[str, Any] = {
+        "scenario": raw["scenario"].iloc[0], "items": len(ran), "trusted": int(trusted.sum()),
+        "trusted_over_2pct": int((trusted & (ape > 2)).sum()),
+        "unknown_share_mean": ran[f"{tag}_unknown_share"].mean()}
+    for name, (low, high) in {"bounds": ("low_ml", "high_ml"),
+                              "interval": ("interval_low_ml", "interval_high_ml")}.items():
+        lower, upper = ran[f"{tag}_{low}"], ran[f"{tag}_{high}"]
+        row[f"{name}_hold"] = int(((lower <= truth) & (truth <= upper)).sum())
+        row[f"{name}_width_pct"] = (100 * (upper - lower) / truth).mean()
+    row["scale_std_pct_mean"] = ran["scale_std_pct"].mean()
+    if scale_err_pct is not None:
+        z = ran["item"].map(scale_err_pct) / ran["scale_std_pct"]
+        row["scale_z_rms"] = float(np.sqrt((z**2).mean()))
+        row["scale_within_2_std"] = int((z.abs() <= 2).sum())
+    return pd.DataFrame([row])
 
 
 def signed_surfaces(root: Path, items: list[str], scenario: Scenario, tag: str = "completion"

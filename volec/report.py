@@ -146,7 +146,24 @@ def bounds_sentence(record: dict[str, Any]) -> str:
     return (f"Between {low:.1f} and {high:.1f} mL{more} from what the cameras saw: the estimate "
             "with the space no camera constrained taken as empty, and as food. "
             f"{100 * record['unknown_share']:.0f} % of the estimate lies in that space, where "
-            "only the shape prior decides." + measured_sentence(record))
+            "only the shape prior decides." + scale_sentence(record) + measured_sentence(record))
+
+
+def scale_sentence(record: dict[str, Any]) -> str:
+    """The bounds widened by the metric scale's uncertainty (``volume_interval_ml``), as a
+    sentence that starts with a space (empty for a ``result.json`` record made before volec
+    reported it)."""
+    if "volume_interval_ml" not in record:
+        return ""
+    std_pct = record["scale_std_pct"]
+    if std_pct is None:
+        return (" The metric scale's uncertainty is not known (the poses' metres are not "
+                "the phone's AR tracking's), so it is not in these bounds.")
+    low, high = record["volume_interval_ml"]
+    sigmas = record["config"]["scale_sigmas"]
+    return (f" With the metric scale's uncertainty as well ({sigmas:g} standard deviations of "
+            f"{std_pct:.2f} % in length, from the AR poses' drift), between {low:.1f} and "
+            f"{high:.1f} mL.")
 
 
 def measured_sentence(record: dict[str, Any]) -> str:
