@@ -34,6 +34,7 @@ def test_a_batch_estimates_each_capture_records_a_failure_and_skips_finished_wor
     cake = table.loc["cake"]
     result = json.loads((out / "cake" / "result.json").read_text())
     assert cake["status"] == "done" and cake["volume_ml"] == result["volume_ml"]
+    assert [cake["low_ml"], cake["high_ml"]] == result["volume_interval_ml"]
     assert not cake["trusted"] and "narrow_orbit" in cake["reasons"]  # 16 frames over 100 deg
     # the batch's page links the report of the capture that has one, and only that
     index = (out / "index.html").read_text()

@@ -4,11 +4,11 @@ In: a folder of captures (each a subfolder ``volec`` can read), an output folder
 settings and where to run (a local Dask cluster by default: one capture per worker process,
 its threads limited so the workers do not oversubscribe the cores; or an existing cluster's
 scheduler address). Out: ``OUT/CAPTURE/`` holding each capture's result folder (what
-``volec estimate`` writes), and ``OUT/batch.csv``: one row per capture (volume, trusted, the
-reasons' codes, warnings, seconds, and the error of a capture that failed), and
-``OUT/index.html``: that table as a sortable page linking each capture's ``report.html``; both
-written atomically after every capture that finishes, so an interrupted batch keeps what it
-finished. A capture's
+``volec estimate`` writes), and ``OUT/batch.csv``: one row per capture (volume, how low and
+high it may be (``volume_interval_ml``), trusted, the reasons' codes, warnings, seconds, and
+the error of a capture that failed), and ``OUT/index.html``: that table as a sortable page
+linking each capture's ``report.html``; both written atomically after every capture that
+finishes, so an interrupted batch keeps what it finished. A capture's
 failure is recorded and does not stop the others; a re-run finds the finished captures finished
 (their ``result.json`` is current) and skips their work.
 """
@@ -31,8 +31,8 @@ log = logging.getLogger(__name__)
 
 TABLE = "batch.csv"
 INDEX = "index.html"
-COLUMNS = ["capture", "status", "volume_ml", "trusted", "reasons", "warnings", "seconds",
-           "masks", "error", "result"]
+COLUMNS = ["capture", "status", "volume_ml", "low_ml", "high_ml", "trusted", "reasons",
+           "warnings", "seconds", "masks", "error", "result"]
 
 
 @dataclass(frozen=True)
@@ -118,8 +118,9 @@ def estimate_one(capture_path: str, out_dir: str, cfg: BatchConfig, threads: int
         est_cfg = replace(base, masks=cfg.masks, use_completion=cfg.use_completion,
                           keyframes=replace(base.keyframes, max_frames=cfg.max_frames))
         result = run_estimate(capture, Path(out_dir), est_cfg, progress=False)
-        row |= {"status": "done", "volume_ml": result["volume_ml"],
-                "trusted": result["trusted"],
+        low_ml, high_ml = result["volume_interval_ml"]
+        row |= {"status": "done", "volume_ml": result["volume_ml"], "low_ml": low_ml,
+                "high_ml": high_ml, "trusted": result["trusted"],
                 "reasons": ",".join(r["code"] for r in result["reasons"]),
                 "warnings": len(result["warnings"]), "masks": result["masks"]["source"]}
     except VolecError as e:
