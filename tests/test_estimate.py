@@ -82,6 +82,7 @@ def test_volec_estimate_end_to_end(small_capture, small_result, tmp_path, capsys
     wide_low, wide_high = result["volume_interval_ml"]
     assert wide_low == pytest.approx(low * (1 - 2 * std) ** 3, abs=0.01)
     assert wide_high == pytest.approx(high * (1 + 2 * std) ** 3, abs=0.01)
+    assert f"between {wide_low:.1f} and {wide_high:.1f} mL" in printed
     assert f"{result['volume_ml']:.1f} mL" in page and 'id="volec-data"' in page
     # the mesh a standard tool opens is closed and holds the volume reported
     mesh = trimesh.load(out / "mesh.ply")

@@ -216,6 +216,10 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
     trust = "trusted" if result["trusted"] else "NOT TRUSTED"
     print(f"volume: {result['volume_ml']:.1f} mL "
           f"({'with' if result['completion_used'] else 'without'} completion; {trust})")
+    low_ml, high_ml = result["volume_interval_ml"]
+    if high_ml is not None:
+        print(f"between {low_ml:.1f} and {high_ml:.1f} mL with what no camera saw and the "
+              "metric scale's uncertainty (volume_interval_ml)")
     for reason in result["reasons"]:
         print(f"not trusted ({reason['code']}): {reason['message']}")
     for warning in result["warnings"][len(result["reasons"]):]:

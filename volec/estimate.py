@@ -910,8 +910,11 @@ def estimate_record(capture: Capture, stages: StageResults, est: Estimate, cfg: 
     return {
         "volume_ml": food.volume_ml,
         **est.bounds.record(),
-        "volume_interval_ml": [round(v, 2) for v in est.volume_interval_ml],
-        "scale_std_pct": None if math.isnan(est.scale_std) else round(100 * est.scale_std, 4),
+        # JSON has no NaN or infinity: a scale no model bounds is written as null
+        "volume_interval_ml": [round(v, 2) if math.isfinite(v) else None
+                               for v in est.volume_interval_ml],
+        "scale_std_pct": (round(100 * est.scale_std, 4) if math.isfinite(est.scale_std)
+                          else None),
         "trusted": est.trusted,
         "reasons": [r.record() for r in est.reasons],
         "warnings": est.warnings,

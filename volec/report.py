@@ -156,14 +156,16 @@ def scale_sentence(record: dict[str, Any]) -> str:
     if "volume_interval_ml" not in record:
         return ""
     std_pct = record["scale_std_pct"]
-    if std_pct is None:
-        return (" The metric scale's uncertainty is not known (the poses' metres are not "
-                "the phone's AR tracking's), so it is not in these bounds.")
     low, high = record["volume_interval_ml"]
+    if std_pct is None or high is None:
+        return (" The metric scale's uncertainty is not known (the poses' metres are not "
+                "the phone's AR tracking's, or they do not bound it), so it is not in these "
+                "bounds.")
     sigmas = record["config"]["scale_sigmas"]
+    more = " or more" if record.get("high_open") else ""
     return (f" With the metric scale's uncertainty as well ({sigmas:g} standard deviations of "
             f"{std_pct:.2f} % in length, from the AR poses' drift), between {low:.1f} and "
-            f"{high:.1f} mL.")
+            f"{high:.1f} mL{more}.")
 
 
 def measured_sentence(record: dict[str, Any]) -> str:
