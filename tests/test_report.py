@@ -104,6 +104,9 @@ def test_the_bounds_say_when_the_scales_uncertainty_is_not_in_them():
 
     record = {**_record(), "scale_std_pct": None, "volume_interval_ml": [30.2, 41.75]}
     assert "uncertainty is not known" in bounds_sentence(record)
+    # cameras in one place bound no scale: result.json holds null, and the page says so
+    unbounded = {**_record(), "scale_std_pct": None, "volume_interval_ml": [0.0, None]}
+    assert "uncertainty is not known" in bounds_sentence(unbounded)
     # a record made before volec reported the interval says only what it holds
     old = {k: v for k, v in _record().items() if k not in ("scale_std_pct",
                                                           "volume_interval_ml")}

@@ -71,3 +71,4 @@ def test_the_volume_interval_widens_the_bounds_by_the_cube_of_the_scale():
     assert low == pytest.approx(90.0 * 0.98**3) and high == pytest.approx(110.0 * 1.02**3)
     assert volume_interval(bounds, math.nan, 2.0) == (90.0, 110.0)
     assert volume_interval(bounds, 0.7, 2.0)[0] == 0.0  # never below nothing
+    assert volume_interval(bounds, math.inf, 2.0) == (0.0, math.inf)
