@@ -1303,7 +1303,7 @@ def bounds_summary(raw: pd.DataFrame, tag: str = "completion", *,
     deviation (%); with the poses' scale errors (:func:`pose_scale_errors`, by item name),
     the root mean square of each error over its standard deviation (1 where the AR noise
     model is right) and on how many items it is within two of them."""
-    ran = raw[raw[f"{tag}_ml"].notna()] if f"{tag}_ml" in raw else raw.iloc[:0]
+    ran = raw[~_failed(raw)]
     truth = ran["gt_ml"]
     trusted = ran[f"{tag}_trusted"].astype(bool)
     ape = 100 * (ran[f"{tag}_ml"] / truth - 1).abs()
