@@ -1,5 +1,6 @@
 import json
 import logging
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -163,6 +164,19 @@ def test_missing_images_are_listed_or_skipped_with_a_warning(tmp_path, caplog):
         cap = read_transforms_json(root, on_missing="skip")
     assert [f.name for f in cap.frames] == ["images/a.png", "images/c.png"]
     assert "b.png" in caplog.text
+    # the frames keep their times in the recording: the skipped one is counted
+    np.testing.assert_array_equal(cap.elapsed_shares, [0.0, 1.0])
+
+
+def test_frames_keep_their_time_in_the_recording_in_a_subset(tmp_path):
+    root = _capture_dir(tmp_path, [_frame(n, np.eye(4)) for n in "abcde"])
+    cap = read_transforms_json(root)
+    np.testing.assert_array_equal(cap.elapsed_shares, [0, 0.25, 0.5, 0.75, 1])
+    subset = replace(cap, frames=cap.frames[1::2])
+    np.testing.assert_array_equal(subset.elapsed_shares, [0.25, 0.75])
+    # frames made by hand carry none: their place in the capture stands in
+    untimed = replace(cap, frames=tuple(replace(f, elapsed_share=None) for f in subset.frames))
+    np.testing.assert_array_equal(untimed.elapsed_shares, [0.0, 1.0])
 
 
 def test_mask_of_the_wrong_size_is_an_error(tmp_path):

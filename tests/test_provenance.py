@@ -95,6 +95,11 @@ def test_a_capture_is_itself_wherever_it_lies_and_changes_are_named(quick_captur
                                             for f, T in zip(capture.frames, poses, strict=True)))
     assert "the camera poses differ" in differences(
         wanted, stage_provenance(shifted, SfmConfig(), {}, ("volec.sfm",)))
+    # the same frames, timed as a recording of their own
+    retimed = replace(capture, frames=tuple(replace(f, elapsed_share=0.5 * i / (len(capture) - 1))
+                                            for i, f in enumerate(capture.frames)))
+    assert differences(wanted, stage_provenance(retimed, SfmConfig(), {}, ("volec.sfm",))) == \
+        ["the frames' times in the recording differ"]
     reordered = replace(capture, frames=capture.frames[::-1])
     assert "the same frames in another order" in differences(
         wanted, stage_provenance(reordered, SfmConfig(), {}, ("volec.sfm",)))[0]

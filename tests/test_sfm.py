@@ -309,3 +309,22 @@ def test_matching_parts_give_the_same_poses_one_at_a_time_or_at_once(small_resul
         np.testing.assert_array_equal(again.T_world_from_cam, result.T_world_from_cam)
         np.testing.assert_array_equal(again.points_xyz, result.points_xyz)
     assert not list((tmp_path / "two").rglob("*.part*"))  # the parts' copies are gone
+
+
+def test_a_subset_is_aligned_at_its_frames_times_in_the_recording(small_capture, small_result):
+    # every other frame of the 16: the drift model runs on their shares of the recording
+    # (0, 2/15, ...), which the summary records and the scale's deviation reads back
+    import pycolmap
+
+    from volec.scale_uncertainty import sfm_scale_std
+    from volec.sfm import align_to_ar
+
+    result, reported = small_result
+    np.testing.assert_array_equal(result.elapsed_shares, np.arange(16) / 15)
+    subset = replace(reported, frames=reported.frames[::2])
+    rec = pycolmap.Reconstruction(str(small_capture / "work" / "sfm" / "model"))
+    aligned = align_to_ar(subset, rec, SfmConfig())
+    np.testing.assert_array_equal(aligned.elapsed_shares, np.arange(0, 16, 2) / 15)
+    renumbered = align_to_ar(replace(subset, frames=tuple(
+        replace(f, elapsed_share=None) for f in subset.frames)), rec, SfmConfig())
+    assert sfm_scale_std(aligned, SfmConfig()) < sfm_scale_std(renumbered, SfmConfig())

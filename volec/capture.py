@@ -157,6 +157,12 @@ class Frame:
     fully, so a capture's identity costs no second read); empty: computed when needed."""
     mask_digest: str = ""
     """Digest of the mask file's bytes, like ``content_digest``."""
+    elapsed_share: float | None = None
+    """When the frame was taken, as a share of the recording it came from: 0 at its first
+    frame, 1 at its last (the reader sets it from the frame's place in the file). A subset of
+    the frames (keyframes, a scenario's frames) keeps its frames' shares, so the AR drift
+    between two kept frames is the recording's, not that of neighbours. None: its place in the
+    capture (:attr:`Capture.elapsed_shares`)."""
 
     @property
     def camera_centre(self) -> np.ndarray:
@@ -193,6 +199,16 @@ class Capture:
     def camera_centres(self) -> np.ndarray:
         """(N, 3) camera centres, metres."""
         return np.stack([f.camera_centre for f in self.frames]) if self.frames else np.zeros((0, 3))
+
+    @property
+    def elapsed_shares(self) -> np.ndarray:
+        """(N,) when each frame was taken, as a share of the recording
+        (:attr:`Frame.elapsed_share`); a frame without one gets its place in this capture,
+        ``i / (N - 1)``."""
+        n = len(self.frames)
+        place = np.arange(n) / max(n - 1, 1)
+        return np.array([place[i] if f.elapsed_share is None else f.elapsed_share
+                         for i, f in enumerate(self.frames)], float)
 
     @property
     def has_masks(self) -> bool:
@@ -387,6 +403,7 @@ def read_transforms_json(
     With ``check_image_sizes`` every image and mask is decoded fully and its size compared to
     ``w``/``h`` (:func:`verify_image`); their digests make the capture's identity.
     The capture's ``metric`` is what the file says of its units (:func:`_metric_flag`).
+    Each frame's ``elapsed_share`` is its place among the file's frames, skipped ones counted.
     """
     import json
 
@@ -428,7 +445,8 @@ def read_transforms_json(
         if absent:
             missing.append(f"frames[{i}]: " + ", ".join(str(p) for p in absent))
             continue
-        frames.append(Frame(name, image_path, intr, T, mask_path))
+        share = i / max(len(top["frames"]) - 1, 1)  # its place in the file, skipped ones too
+        frames.append(Frame(name, image_path, intr, T, mask_path, elapsed_share=share))
         indices.append(i)
 
     if missing:

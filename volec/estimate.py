@@ -193,7 +193,7 @@ class EstimateConfig:
     """How many standard deviations of the metric scale (:mod:`volec.scale_uncertainty`)
     ``volume_interval_ml`` adds on each side of the bounds: 2 holds the scale's error about
     95 % of the time if the AR noise is what ``sfm.ar_jitter_m`` and
-    ``sfm.ar_drift_m_per_sqrt_frame`` say."""
+    ``sfm.ar_drift_m`` say."""
     rims: RimConfig = field(default_factory=RimConfig)
     """Where the food masks' outlines place the surface under the item's widest level, mesh
     with those points too (:mod:`volec.rims`; only with carving silhouettes)."""

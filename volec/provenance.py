@@ -203,9 +203,11 @@ def code_identity(*modules: str) -> dict[str, str]:
 
 def capture_identity(capture: Capture) -> dict[str, Any]:
     """What makes a capture this capture: per frame its name, image size, and digests of its
-    image and mask files; digests of all poses and all intrinsics; whether it is metric; and
-    one ``digest`` over all of it. Where the capture was read from (``root``) is recorded but
-    is not part of its identity: a moved capture is the same capture."""
+    image and mask files; digests of all poses, of when the frames were taken
+    (:attr:`~volec.capture.Capture.elapsed_shares`, which the AR drift model weighs) and of all
+    intrinsics; whether it is metric; and one ``digest`` over all of it. Where the capture was
+    read from (``root``) is recorded but is not part of its identity: a moved capture is the
+    same capture."""
     frames = []
     for f in capture.frames:
         image = f.content_digest or file_digest(f.image_path)
@@ -219,6 +221,7 @@ def capture_identity(capture: Capture) -> dict[str, Any]:
     identity = {
         "frames": frames,
         "poses": bytes_digest(np.ascontiguousarray(poses).tobytes()),
+        "times": bytes_digest(np.ascontiguousarray(capture.elapsed_shares).tobytes()),
         "intrinsics": record_digest({"all": intrinsics}),
         "metric": capture.metric,
         "metres_per_unit": capture.metres_per_unit,
@@ -250,6 +253,8 @@ def _capture_differences(recorded: dict[str, Any], wanted: dict[str, Any]) -> li
             out.append(f"the {what} of {len(changed)} frames differ ({_first(changed)})")
     if recorded.get("poses") != wanted.get("poses"):
         out.append("the camera poses differ")
+    if recorded.get("times") != wanted.get("times"):
+        out.append("the frames' times in the recording differ")
     if recorded.get("intrinsics") != wanted.get("intrinsics"):
         out.append("the camera intrinsics differ")
     for key in ("metric", "metres_per_unit"):

@@ -12,8 +12,9 @@ fits the scale by generalised least squares under that noise model
 (:func:`volec.sfm.drift_model_alignment`); the same model says how uncertain the fit is. Here
 the drift is integrated out rather than solved for: per axis the AR centres are ``lambda * u +
 t + eta`` with ``u`` the aligned camera centres less the alignment's translation, ``lambda``
-the relative scale (1 at the fit) and ``eta`` Gaussian with covariance ``q**2 min(f_i, f_j) +
-j**2 [i = j]`` (``f``: frame index, ``q``: drift per square-root frame, ``j``: jitter). The
+the relative scale (1 at the fit) and ``eta`` Gaussian with covariance ``q**2 min(e_i, e_j) +
+j**2 [i = j]`` (``e``: when the frame was taken, as a share of the recording, ``q``: the drift
+at its end, ``j``: jitter). The
 Fisher information of (lambda, t) gives lambda's variance. This is the same model as the fit,
 written another way, so a test can check one against the other by simulation. Volume scales
 with the cube of the scale, so a length uncertainty of 0.3 % is about 0.9 % of volume.
@@ -26,20 +27,20 @@ import math
 import numpy as np
 from scipy.linalg import solve_triangular
 
-from volec.sfm import SfmConfig, SfmResult
+from volec.sfm import TIME_FLOOR, SfmConfig, SfmResult
 from volec.space import VolumeBounds
 
 
-def drift_scale_std(centres_m: np.ndarray, frame_index: np.ndarray, jitter_m: float,
-                    drift_m_per_sqrt_frame: float) -> float:
+def drift_scale_std(centres_m: np.ndarray, times: np.ndarray, jitter_m: float,
+                    drift_m_per_sqrt_time: float) -> float:
     """Standard deviation of the relative scale fitted to AR camera centres (N, 3) that lie at
     ``centres_m`` (relative to the alignment's translation, metres) and were recorded at
-    ``frame_index`` (N,) in capture order, under the AR noise model in the module docstring.
+    ``times`` (N,), in order, under the AR noise model in the module docstring.
 
     A capture with the cameras all in one place has no scale to fit: infinity."""
     centres = np.asarray(centres_m, float)
-    frames = np.maximum(np.asarray(frame_index, float), 1e-6)  # as the fit pins frame 0
-    covariance = drift_m_per_sqrt_frame**2 * np.minimum.outer(frames, frames)
+    times = np.maximum(np.asarray(times, float), TIME_FLOOR)  # as the fit pins time 0
+    covariance = drift_m_per_sqrt_time**2 * np.minimum.outer(times, times)
     covariance[np.diag_indices_from(covariance)] += jitter_m**2
     # Cholesky solves, not an inverse: the random walk's covariance is badly conditioned
     # over a long capture.
@@ -59,11 +60,13 @@ def drift_scale_std(centres_m: np.ndarray, frame_index: np.ndarray, jitter_m: fl
 
 def sfm_scale_std(sfm: SfmResult, cfg: SfmConfig) -> float:
     """:func:`drift_scale_std` of the scale ``sfm`` took from the AR poses, with ``cfg``'s AR
-    noise model (``ar_jitter_m``, ``ar_drift_m_per_sqrt_frame``): the registered frames'
-    refined centres, in the world frame less the alignment's translation."""
+    noise model (``ar_jitter_m``, ``ar_drift_m``): the registered frames' refined centres, in
+    the world frame less the alignment's translation, at the times the fit used
+    (:attr:`~volec.sfm.SfmResult.elapsed_shares`)."""
     registered = np.flatnonzero(sfm.registered)
     centres = sfm.T_world_from_cam[registered, :3, 3] - sfm.world_from_model[:3, 3]
-    return drift_scale_std(centres, registered, cfg.ar_jitter_m, cfg.ar_drift_m_per_sqrt_frame)
+    return drift_scale_std(centres, sfm.elapsed_shares[registered], cfg.ar_jitter_m,
+                           cfg.ar_drift_m)
 
 
 def volume_interval(bounds: VolumeBounds, scale_std: float, sigmas: float

@@ -122,12 +122,18 @@ class SfmConfig:
     ``sim3_all``: a Sim(3) fitted to all camera centres."""
     ar_jitter_m: float = 0.0003
     """Drift model: standard deviation of the AR position noise of one frame, metres."""
-    ar_drift_m_per_sqrt_frame: float = 0.0005
-    """Drift model: random-walk growth of the AR position drift, metres per sqrt(frame)."""
+    ar_drift_m: float = 0.005
+    """Drift model: standard deviation of the AR position drift at the end of the recording,
+    metres. It is a random walk from zero: at a share ``e`` of the recording
+    (:attr:`volec.capture.Frame.elapsed_share`) its variance is ``e * ar_drift_m**2``, so a
+    subset of the frames (keyframes, 30 frames of 100) keeps the recording's drift between
+    them. (It used to grow per frame, 0.5 mm per square-root frame: the same on a 100-frame
+    capture, but too little drift between the frames a subset kept apart.)"""
     ar_rot_jitter_deg: float = 0.02
     """Drift model: standard deviation of the AR orientation noise of one frame, degrees."""
-    ar_rot_drift_deg_per_sqrt_frame: float = 0.03
-    """Drift model: random-walk growth of the AR orientation drift, degrees per sqrt(frame)."""
+    ar_rot_drift_deg: float = 0.3
+    """Drift model: standard deviation of the AR orientation drift at the end of the
+    recording, degrees (a random walk like ``ar_drift_m``)."""
     short_baseline_max_frames: int = 6
     """Largest frame separation of the displacement pairs used by ``short_baseline``."""
     alignment_inlier_m: float = 0.02
@@ -190,6 +196,17 @@ class SfmResult:
     def scale(self) -> float:
         """Metres per COLMAP model unit."""
         return float(np.cbrt(np.linalg.det(self.world_from_model[:3, :3])))
+
+    @property
+    def elapsed_shares(self) -> np.ndarray:
+        """(N,) when each frame was taken, as a share of the recording: the clock the AR
+        drift model ran on (``summary["frame_elapsed_shares"]``; without it, each frame's
+        place, as :attr:`volec.capture.Capture.elapsed_shares` gives it)."""
+        n = len(self.frame_names)
+        shares = self.summary.get("frame_elapsed_shares")
+        if shares is None:
+            return np.arange(n) / max(n - 1, 1)
+        return np.asarray(shares, float)
 
 
 # ----------------------------------------------------------------------------- pairing
@@ -280,34 +297,37 @@ def rotation_weighted_mean(rotations: np.ndarray, weights: np.ndarray) -> np.nda
     return U @ D @ Vt
 
 
-def drift_weights(
-    frame_index: np.ndarray, jitter: float, growth_per_sqrt_frame: float
-) -> np.ndarray:
-    """Inverse variances of AR measurements whose error is jitter plus a random walk from
-    frame 0: frames early in the session are trusted most."""
-    return 1.0 / (jitter**2 + growth_per_sqrt_frame**2 * np.asarray(frame_index, float))
+TIME_FLOOR = 1e-8
+"""The drift model's least time between two frames, or before the first (units of its times)."""
+
+
+def drift_weights(times: np.ndarray, jitter: float, drift_per_sqrt_time: float) -> np.ndarray:
+    """Inverse variances of AR measurements taken at ``times`` whose error is jitter plus a
+    random walk from time 0: frames early in the session are trusted most."""
+    return 1.0 / (jitter**2 + drift_per_sqrt_time**2 * np.asarray(times, float))
 
 
 def drift_model_alignment(
     model_centres: np.ndarray,
     ar_centres: np.ndarray,
-    frame_index: np.ndarray,
+    times: np.ndarray,
     rotation: np.ndarray,
     jitter_m: float,
-    drift_m_per_sqrt_frame: float,
+    drift_m_per_sqrt_time: float,
 ) -> tuple[float, np.ndarray, np.ndarray]:
     """Scale, translation and AR drift by generalised least squares.
 
     Model: ``ar_i = s R m_i + t + d_i + noise_i`` with ``d`` a random walk that is zero at
-    frame 0 (the AR world is defined where the session starts), step variance
-    ``drift_m_per_sqrt_frame**2`` per frame, and white ``noise`` of std ``jitter_m``. With the
+    time 0 (the AR world is defined where the session starts) whose variance grows by
+    ``drift_m_per_sqrt_time**2`` per unit of ``times`` (when each frame was taken, e.g. its
+    share of the recording), and white ``noise`` of std ``jitter_m``. With the
     rotation ``R`` fixed the problem is linear in (s, t, d_1..d_n); it is solved densely
     (a few hundred unknowns). Returns (s, t, drift (N, 3)).
     """
     n = len(model_centres)
-    order = np.argsort(frame_index)
-    if not np.array_equal(order, np.arange(n)):
-        raise ValueError("frames must be in capture order")
+    times = np.asarray(times, float)
+    if np.any(np.diff(times) < 0):
+        raise ValueError("frames must be in the order they were taken")
     rm = model_centres @ rotation.T
     n_unknown = 4 + 3 * n  # s, t, d_0..d_{n-1}; d_0 is pinned by a strong prior
     rows, rhs = [], []
@@ -317,14 +337,16 @@ def drift_model_alignment(
             r[0], r[1 + k], r[4 + 3 * i + k] = rm[i, k], 1.0, 1.0
             rows.append(r / jitter_m)
             rhs.append(ar_centres[i, k] / jitter_m)
-    gap0 = max(float(frame_index[0]), 1e-6)  # drift accumulated before the first registered frame
+    # drift accumulated before the first registered frame, and between frames (the floor pins
+    # a frame at time 0 and ties frames taken at one instant together)
+    gaps = np.maximum(np.diff(times, prepend=0.0), TIME_FLOOR)
     for k in range(3):
         r = np.zeros(n_unknown)
         r[4 + k] = 1.0
-        rows.append(r / (drift_m_per_sqrt_frame * np.sqrt(gap0)))
+        rows.append(r / (drift_m_per_sqrt_time * np.sqrt(gaps[0])))
         rhs.append(0.0)
     for i in range(1, n):
-        step = drift_m_per_sqrt_frame * np.sqrt(float(frame_index[i] - frame_index[i - 1]))
+        step = drift_m_per_sqrt_time * np.sqrt(gaps[i])
         for k in range(3):
             r = np.zeros(n_unknown)
             r[4 + 3 * i + k], r[4 + 3 * (i - 1) + k] = 1.0, -1.0
@@ -840,14 +862,15 @@ def align_to_ar(capture: Capture, rec: Any, cfg: SfmConfig) -> SfmResult:
     # offset from the SfM orientations is the better world-from-model rotation.
     ar_R = np.stack([capture.frames[i].T_world_from_cam[:3, :3] for i in reg_idx])
     offsets = np.einsum("nij,nkj->nik", ar_R, model_T[:, :3, :3])
+    shares = capture.elapsed_shares
     if cfg.scale_method == "drift_model":
-        w = drift_weights(reg_idx, cfg.ar_rot_jitter_deg, cfg.ar_rot_drift_deg_per_sqrt_frame)
+        w = drift_weights(shares[reg_idx], cfg.ar_rot_jitter_deg, cfg.ar_rot_drift_deg)
         R = rotation_weighted_mean(offsets, w)
     else:
         R = rotation_mean(offsets)
     s_short = short_baseline_scale(model_c, ar_c, R, cfg.short_baseline_max_frames)
     s_drift, t_drift, drift = drift_model_alignment(
-        model_c, ar_c, reg_idx, R, cfg.ar_jitter_m, cfg.ar_drift_m_per_sqrt_frame
+        model_c, ar_c, shares[reg_idx], R, cfg.ar_jitter_m, cfg.ar_drift_m
     )
     if cfg.scale_method == "drift_model":
         s, t = s_drift, t_drift
@@ -876,6 +899,7 @@ def align_to_ar(capture: Capture, rec: Any, cfg: SfmConfig) -> SfmResult:
     rgb = np.asarray(rgb, np.uint8).reshape(-1, 3)
     summary = {
         "frame_names": names,
+        "frame_elapsed_shares": shares.tolist(),
         "world_from_model": W.tolist(),
         "frames": n,
         "registered": int(registered.sum()),
