@@ -14,10 +14,10 @@ the drift is integrated out rather than solved for: per axis the AR centres are 
 t + eta`` with ``u`` the aligned camera centres less the alignment's translation, ``lambda``
 the relative scale (1 at the fit) and ``eta`` Gaussian with covariance ``q**2 min(e_i, e_j) +
 j**2 [i = j]`` (``e``: when the frame was taken, as a share of the recording, ``q``: the drift
-at its end, ``j``: jitter). The
-Fisher information of (lambda, t) gives lambda's variance. This is the same model as the fit,
-written another way, so a test can check one against the other by simulation. Volume scales
-with the cube of the scale, so a length uncertainty of 0.3 % is about 0.9 % of volume.
+at its end, ``j``: jitter). The Fisher information of (lambda, t) gives lambda's variance.
+This is the same model as the fit, written another way, so a test can check one against the
+other by simulation. Volume scales with the cube of the scale, so a length uncertainty of
+0.3 % is about 0.9 % of volume.
 """
 
 from __future__ import annotations
