@@ -3,13 +3,15 @@ finished stages: the network sees a random subset of the masked cloud (1024 of s
 points for the ``cpu`` checkpoint), so another seed predicts other points.
 
 Usage: .venv/bin/python benchmarks/bench_completion_seeds.py [--scenario full_orbit]
-       [--seeds 3] ITEM...
+       [--seeds 3] [--resamplings 1] ITEM...
 
 Uses the captures and stages of ``data/bench-sfm`` as ``bench_volume.py`` does (stages made by
 other code or settings are recomputed, never reused), runs the estimate that ``volec
 estimate`` runs (:func:`volec.estimate.estimate_from_stages`) without completion and with
-network completion once per seed, and writes figures/completion_seeds.{csv,md}: per item the
-volume error without completion and per seed, and the spread over the seeds.
+the default completion once per seed (each pooling ``--resamplings`` draws,
+:attr:`volec.completion.complete.CompletionConfig.resamplings`), and writes
+figures/completion_seeds.{csv,md}: per item the volume error without completion and per seed,
+and the spread (range and standard deviation) over the seeds.
 """
 
 from __future__ import annotations
@@ -33,7 +35,8 @@ from volec.synth import load_truth
 from volec.tables import write_table
 
 
-def item_row(item: str, scenario: Scenario, seeds: int) -> dict[str, float | str]:
+def item_row(item: str, scenario: Scenario, seeds: int, resamplings: int = 1
+             ) -> dict[str, float | str]:
     """Volume errors (%) of ``item`` without completion and with each seed."""
     out = ensure_capture(experiment_dir(False), item, scenario)
     capture = scenario_capture(out, scenario)
@@ -50,10 +53,12 @@ def item_row(item: str, scenario: Scenario, seeds: int) -> dict[str, float | str
     row: dict[str, float | str] = {
         "item": item, "without_pct": error_pct(replace(cfg, use_completion=False), None)}
     model = load_completion_model(cfg)
-    errors = [error_pct(replace(cfg, completion=replace(cfg.completion, seed=seed)), model)
+    errors = [error_pct(replace(cfg, completion=replace(cfg.completion, seed=seed,
+                                                        resamplings=resamplings)), model)
               for seed in range(seeds)]
     row.update({f"seed{seed}_pct": e for seed, e in enumerate(errors)})
     row["spread_pct"] = float(np.ptp(errors))
+    row["std_pct"] = float(np.std(errors))
     return row
 
 
@@ -62,9 +67,11 @@ def main() -> None:
     parser.add_argument("items", nargs="+")
     parser.add_argument("--scenario", default="full_orbit")
     parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--resamplings", type=int, default=1)
     args = parser.parse_args()
     scenario = scenarios(False)[args.scenario]
-    table = pd.DataFrame([item_row(item, scenario, args.seeds) for item in args.items])
+    table = pd.DataFrame([item_row(item, scenario, args.seeds, args.resamplings)
+                          for item in args.items])
     write_table(table, figures_dir() / "completion_seeds", float_digits=2)
     print(table.to_string(index=False, float_format=lambda x: f"{x:+.2f}"))
     print(f"mean spread over {args.seeds} seeds: {table['spread_pct'].mean():.2f} % "
