@@ -12,8 +12,9 @@ row is then computed there from scratch by the code in ``--before`` and in ``--a
 checkout unless given; ``PYTHONPATH=DIR``, e.g. ``git worktree add /tmp/before REV``),
 alternating (before first in odd rounds, after first in even ones), each in a child process
 on one thread as a ``make paper`` worker runs it.
-Prints the wall times, their after/before ratio per item, and every result column (not a
-time) in which the two rows differ beyond 1e-9 relative; written to
+Prints the wall times and the meshing's share of them (the five methods' ``*_meshing_s``),
+their after/before ratios per item, and every result column (not a time) in which the two
+rows differ beyond 1e-9 relative; written to
 figures/volume_row_benchmark.{csv,md}.
 """
 
@@ -90,6 +91,12 @@ def differing(before: dict[str, Any], after: dict[str, Any]) -> list[str]:
     return out
 
 
+def meshing_seconds(row: dict[str, Any]) -> float:
+    """The seconds the row's five methods spent meshing (their ``*_meshing_s``), the part
+    of a row that changes to the meshing speed up or slow down."""
+    return sum(v for k, v in row.items() if k.endswith("_meshing_s"))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--before", type=Path, required=True)
@@ -116,10 +123,14 @@ def main() -> None:
                 rows.append({"item": item, "round": rnd + 1,
                              "before_s": made["before"]["row_wall_s"],
                              "after_s": made["after"]["row_wall_s"],
+                             "before_meshing_s": meshing_seconds(made["before"]),
+                             "after_meshing_s": meshing_seconds(made["after"]),
                              "differing": ",".join(differing(made["before"], made["after"]))})
     table = pd.DataFrame(rows)
-    summary = table.groupby("item")[["before_s", "after_s"]].sum()
+    summary = table.groupby("item")[["before_s", "after_s", "before_meshing_s",
+                                     "after_meshing_s"]].sum()
     summary["ratio"] = summary["after_s"] / summary["before_s"]
+    summary["meshing_ratio"] = summary["after_meshing_s"] / summary["before_meshing_s"]
     write_table(table, figures_dir() / "volume_row_benchmark", float_digits=2)
     print(table.to_string(index=False, float_format=lambda x: f"{x:.1f}"))
     print(summary.to_string(float_format=lambda x: f"{x:.3f}"))

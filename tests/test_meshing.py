@@ -23,6 +23,7 @@ from volec.meshing import (
     mesh_cloud,
     oriented_normals,
     signed_distance_grid,
+    signed_mask_distance,
     silhouette_field,
     silhouette_view,
     silhouette_views,
@@ -212,6 +213,27 @@ def test_silhouette_field_is_the_metric_distance_outside_the_mask():
     assert np.isneginf(unseen).all()
     # two views must agree when min_views is 2: one view alone carves nothing
     assert np.isneginf(silhouette_field(points, [view], 1.0, 2)).all()
+
+
+def test_signed_mask_distance_is_scipy_s_exact_transform_bit_for_bit():
+    # Against SciPy's exact Euclidean transform, computed independently here: blobs that
+    # touch the image's border, a hole, lone pixels, a thin line; and the masks with no
+    # border at all (empty, full), which have nothing to measure to.
+    from scipy import ndimage
+
+    rng = np.random.default_rng(3)
+    v, u = np.mgrid[0:240, 0:320]
+    masks = [np.hypot(u - 20.0, v - 30.0) <= 60.0,  # cut by two sides of the image
+             (np.hypot(u - 160.0, v - 120.0) <= 90.0) & (np.hypot(u - 170.0, v - 110.0) > 25.0),
+             rng.random((240, 320)) < 0.001,
+             np.zeros((240, 320), bool), np.ones((240, 320), bool)]
+    masks.append(masks[0] | (u == 300))
+    for mask in masks:
+        expected = (ndimage.distance_transform_edt(~mask)
+                    - ndimage.distance_transform_edt(mask)).astype(np.float32)
+        got = signed_mask_distance(mask)
+        assert got.dtype == np.float32
+        assert np.array_equal(got, expected)
 
 
 def test_a_share_of_the_views_must_agree_before_a_point_is_carved():

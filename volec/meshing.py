@@ -303,15 +303,36 @@ class PriorViews:
     may_carve: Callable[[np.ndarray], np.ndarray]
 
 
+def signed_mask_distance(mask: np.ndarray) -> np.ndarray:
+    """(H, W) float32: each pixel's Euclidean distance (pixels) to the nearest pixel on the
+    other side of the boolean ``mask``'s border, positive outside the mask, negative inside.
+
+    SciPy's exact transform (``distance_transform_edt``) took 23 ms a 480x640 mask; OpenCV's
+    precise one (Felzenszwalb's) takes 6 ms, but its square root is a float32 approximation,
+    up to 3e-5 px off. Its squared distances are whole numbers, so rounding its result's
+    square recovers them (the error is far under half a unit below 8,000 px), and their
+    float64 square root is what SciPy returns: the same bits, in a third of the time. A mask
+    with no pixel on one side has no border, and goes to SciPy."""
+    import cv2
+
+    mask = np.asarray(mask, bool)
+    if mask.all() or not mask.any():
+        from scipy import ndimage
+
+        signed = ndimage.distance_transform_edt(~mask) - ndimage.distance_transform_edt(mask)
+        return signed.astype(np.float32)
+    inside = mask.astype(np.uint8)
+    signed = cv2.distanceTransform(1 - inside, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    signed -= cv2.distanceTransform(inside, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return np.copysign(np.sqrt(np.rint(np.square(signed, dtype=np.float64))),
+                       signed).astype(np.float32)
+
+
 def silhouette_view(mask: np.ndarray, intrinsics: Intrinsics, T_world_from_cam: np.ndarray,
                     name: str = "") -> SilhouetteView:
     """The :class:`SilhouetteView` of a boolean food ``mask`` (H, W) seen by a camera."""
-    from scipy import ndimage
-
-    mask = np.asarray(mask, bool)
-    signed = ndimage.distance_transform_edt(~mask) - ndimage.distance_transform_edt(mask)
     return SilhouetteView(intrinsics, np.linalg.inv(np.asarray(T_world_from_cam, float)),
-                          signed.astype(np.float32), name)
+                          signed_mask_distance(mask), name)
 
 
 def silhouette_views(capture: Capture, masks: MaskSet, T_world_from_cam: np.ndarray,
@@ -433,6 +454,7 @@ def _view_samples(points: np.ndarray, views: list[SilhouetteView], mode: str
     T = torch.from_numpy(T64.astype(np.float32))
     f_c = torch.tensor([[v.intrinsics.fx, v.intrinsics.fy, v.intrinsics.cx, v.intrinsics.cy]
                         for v in views], dtype=torch.float32)[:, None, :]
+    fx, fy, cx, cy = f_c.unbind(-1)  # each (V, 1)
     # 4 million view-points a chunk: volec estimate's peak memory 1.5-1.6 GB instead of
     # 1.2-1.3 GB view by view. A quarter of that took as long, but matmul's float32 rounding
     # depends on the chunk's shape, and through the space sorting and completion it moved the
@@ -442,24 +464,27 @@ def _view_samples(points: np.ndarray, views: list[SilhouetteView], mode: str
     with torch.no_grad():
         for start in range(0, len(points), chunk):
             xyz = torch.from_numpy((points[start:start + chunk] - origin).astype(np.float32))
-            cam = torch.matmul(xyz, T[:, :, :3].transpose(1, 2)) + T[:, None, :, 3]  # V, n, 3
-            z = cam[..., 2]
+            # (V, 3, n): each camera coordinate a contiguous row, R @ x + t in one batched
+            # product. The same sums in the same order as (V, n, 3) = x @ R^T + t, so the
+            # same bits, in about half the time of that layout's strided arithmetic.
+            x, y, z = torch.baddbmm(T[:, :, 3:], T[:, :, :3],
+                                    xyz.T.expand(len(views), 3, len(xyz))).unbind(1)
             # In place where a temporary would be made: the same operations in the same
-            # order, so the same bits, in 0.87 of the time the out-of-place version took
-            # (100 views of 480x640, 250 000 points).
-            u = (cam[..., 0] / z).mul_(f_c[..., 0]).add_(f_c[..., 2])
-            v = (cam[..., 1] / z).mul_(f_c[..., 1]).add_(f_c[..., 3])
+            # order, so the same bits.
+            u = (x / z).mul_(fx).add_(cx)
+            v = (y / z).mul_(fy).add_(cy)
             ok = z > 1e-9
             ok &= u >= 0
             ok &= u <= w - 1
             ok &= v >= 0
             ok &= v <= h - 1
-            grid = torch.stack([u.div_(w - 1).mul_(2).sub_(1), v.div_(h - 1).mul_(2).sub_(1)],
+            outside = ~ok
+            grid = torch.stack([u.div_(w - 1).mul_(2).sub_(1).masked_fill_(outside, 0.0),
+                                v.div_(h - 1).mul_(2).sub_(1).masked_fill_(outside, 0.0)],
                                dim=-1)
-            grid.masked_fill_(~ok[..., None], 0.0)
             sampled = F.grid_sample(images, grid[:, None], mode=mode,
                                     align_corners=True)[:, 0, 0]
-            yield slice(start, start + len(xyz)), sampled, z / f_c[..., 0], ok
+            yield slice(start, start + len(xyz)), sampled, z / fx, ok
 
 
 def outside_distances(points: np.ndarray, views: list[SilhouetteView], margin_px: float
