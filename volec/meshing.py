@@ -308,11 +308,12 @@ def signed_mask_distance(mask: np.ndarray) -> np.ndarray:
     other side of the boolean ``mask``'s border, positive outside the mask, negative inside.
 
     SciPy's exact transform (``distance_transform_edt``) took 23 ms a 480x640 mask; OpenCV's
-    precise one (Felzenszwalb's) takes 6 ms, but its square root is a float32 approximation,
-    up to 3e-5 px off. Its squared distances are whole numbers, so rounding its result's
-    square recovers them (the error is far under half a unit below 8,000 px), and their
-    float64 square root is what SciPy returns: the same bits, in a third of the time. A mask
-    with no pixel on one side has no border, and goes to SciPy."""
+    precise one (Felzenszwalb's) takes 6 ms, but in float32: a pixel of the benchmark's masks
+    came out up to 3e-5 px off. The squared distances are whole numbers, so rounding the
+    square of OpenCV's result recovers them, and their float64 square root is what SciPy
+    returns: the same bits, in a third of the time, for every pixel within 4,096 px of the
+    border (where float32 holds the squares exactly; farther, up to 5e-4 px off). A mask with
+    no pixel on one side has no border, and goes to SciPy."""
     import cv2
 
     mask = np.asarray(mask, bool)
@@ -465,8 +466,10 @@ def _view_samples(points: np.ndarray, views: list[SilhouetteView], mode: str
         for start in range(0, len(points), chunk):
             xyz = torch.from_numpy((points[start:start + chunk] - origin).astype(np.float32))
             # (V, 3, n): each camera coordinate a contiguous row, R @ x + t in one batched
-            # product. The same sums in the same order as (V, n, 3) = x @ R^T + t, so the
-            # same bits, in about half the time of that layout's strided arithmetic.
+            # product, in about half the time of the (V, n, 3) layout's strided arithmetic.
+            # Its sums came out the same bits as that layout's (x @ R^T + t) on every value
+            # of the benchmark rows tried (benchmarks/bench_silhouettes.py and
+            # bench_volume_row.py); another CPU's kernels may round them otherwise.
             x, y, z = torch.baddbmm(T[:, :, 3:], T[:, :, :3],
                                     xyz.T.expand(len(views), 3, len(xyz))).unbind(1)
             # In place where a temporary would be made: the same operations in the same
