@@ -15,11 +15,10 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-import os
-import subprocess
-import sys
 import time
 from pathlib import Path
+
+from before_after import checkouts, child_result
 
 
 def render_digest(item: str, frames: int) -> dict[str, float | str]:
@@ -39,14 +38,6 @@ def render_digest(item: str, frames: int) -> dict[str, float | str]:
     return {"s_per_frame": (time.perf_counter() - start) / frames, "digest": digest.hexdigest()}
 
 
-def _child(code: Path, item: str, frames: int) -> dict[str, float | str]:
-    env = dict(os.environ, PYTHONPATH=str(code), OMP_NUM_THREADS="1",
-               OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
-    out = subprocess.run([sys.executable, __file__, "--child", item, "--frames", str(frames)],
-                         env=env, check=True, capture_output=True, text=True).stdout
-    return json.loads(out.strip().splitlines()[-1])
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("items", nargs="*", default=["apple", "banana", "chocolate_cake"])
@@ -58,15 +49,15 @@ def main() -> None:
     if args.child:
         print(json.dumps(render_digest(args.child, args.frames)))
         return
-    here = Path(__file__).resolve().parents[1]
-    codes = {"after": here} | ({"before": args.before.resolve()} if args.before else {})
+    codes = checkouts(args.before)
     print(f"{'item':<18} " + " ".join(f"{k + ' s/frame':>16}" for k in codes)
           + (f" {'ratio':>6} {'same bytes':>10}" if args.before else ""))
     for item in args.items:
         runs: dict[str, list[dict]] = {k: [] for k in codes}
         for _ in range(args.rounds):
             for name, code in codes.items():
-                runs[name].append(_child(code, item, args.frames))
+                runs[name].append(child_result(__file__, code,
+                                               [item, "--frames", str(args.frames)]))
         best = {k: min(r["s_per_frame"] for r in v) for k, v in runs.items()}
         line = f"{item:<18} " + " ".join(f"{best[k]:16.3f}" for k in codes)
         if args.before:

@@ -20,11 +20,10 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-import os
-import subprocess
-import sys
 import time
 from pathlib import Path
+
+from before_after import checkouts, child_result
 
 
 def silhouette_times(item: str, points: int) -> dict[str, float | str]:
@@ -58,14 +57,6 @@ def silhouette_times(item: str, points: int) -> dict[str, float | str]:
     return {"silhouettes_s": silhouettes_s, "field_s": field_s, "digest": digest.hexdigest()}
 
 
-def _child(code: Path, item: str, points: int) -> dict[str, float | str]:
-    env = dict(os.environ, PYTHONPATH=str(code), OMP_NUM_THREADS="1",
-               OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
-    out = subprocess.run([sys.executable, __file__, "--child", item, "--points", str(points)],
-                         env=env, check=True, capture_output=True, text=True).stdout
-    return json.loads(out.strip().splitlines()[-1])
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("items", nargs="*", default=["apple", "banana", "pear"])
@@ -77,8 +68,7 @@ def main() -> None:
     if args.child:
         print(json.dumps(silhouette_times(args.child, args.points)))
         return
-    here = Path(__file__).resolve().parents[1]
-    codes = {"after": here} | ({"before": args.before.resolve()} if args.before else {})
+    codes = checkouts(args.before)
     parts = ("silhouettes_s", "field_s")
     print(f"{'item':<12} " + " ".join(f"{k + ' ' + p:>22}" for k in codes for p in parts)
           + (f" {'ratios':>11} {'same bits':>9}" if args.before else ""))
@@ -87,7 +77,8 @@ def main() -> None:
         for rnd in range(args.rounds):
             order = list(codes.items())
             for name, code in order if rnd % 2 == 0 else order[::-1]:  # alternating
-                runs[name].append(_child(code, item, args.points))
+                runs[name].append(child_result(__file__, code,
+                                               [item, "--points", str(args.points)]))
         best = {(k, p): min(r[p] for r in v) for k, v in runs.items() for p in parts}
         line = f"{item:<12} " + " ".join(f"{best[k, p]:22.3f}" for k in codes for p in parts)
         if args.before:
