@@ -307,13 +307,15 @@ def signed_mask_distance(mask: np.ndarray) -> np.ndarray:
     """(H, W) float32: each pixel's Euclidean distance (pixels) to the nearest pixel on the
     other side of the boolean ``mask``'s border, positive outside the mask, negative inside.
 
-    SciPy's exact transform (``distance_transform_edt``) took 23 ms a 480x640 mask; OpenCV's
-    precise one (Felzenszwalb's) takes 6 ms, but in float32: a pixel of the benchmark's masks
-    came out up to 3e-5 px off. The squared distances are whole numbers, so rounding the
-    square of OpenCV's result recovers them, and their float64 square root is what SciPy
-    returns: the same bits, in a third of the time, for every pixel within 4,096 px of the
-    border (where float32 holds the squares exactly; farther, up to 5e-4 px off). A mask with
-    no pixel on one side has no border, and goes to SciPy."""
+    OpenCV's precise transform (Felzenszwalb's) in place of SciPy's exact one
+    (``distance_transform_edt``): a 100-frame capture's silhouettes in a third to two fifths
+    of the time (``benchmarks/bench_silhouettes.py``). OpenCV works in float32, and on one
+    thread (a ``make paper`` or batch worker) its square root is approximate, up to 3e-5 px
+    off. The squared distances are whole numbers, so rounding the square of its result
+    recovers them, and their float64 square root is what SciPy returns: the same bits for
+    every pixel within 4,096 px of the border (where float32 holds the squares exactly;
+    farther, up to 5e-4 px off). A mask with no pixel on one side has no border, and goes to
+    SciPy."""
     import cv2
 
     mask = np.asarray(mask, bool)
