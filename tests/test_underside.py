@@ -10,7 +10,13 @@ from tests.test_rims import _seen_from_above
 from volec.meshing import SupportPlane
 from volec.pointcloud import PointCloud
 from volec.space import EMPTY, FOOD, UNKNOWN, SpaceGrid, observed_space
-from volec.underside import UndersideConfig, facing_out, fit_level, underside_points
+from volec.underside import (
+    UndersideConfig,
+    facing_out,
+    fit_level,
+    hole_above,
+    underside_points,
+)
 
 UP = np.array([0.0, 0.0, 1.0])
 
@@ -200,3 +206,71 @@ def test_the_body_top_is_the_surface_s_not_its_noise_s():
     raw = body_top(cloud.xyz, heights, UP, UndersideConfig(top_neighbours=1))
     assert raw > top_m + 0.0008
     assert abs(body_top(cloud.xyz, heights, UP, UndersideConfig()) - top_m) < 0.0003
+
+
+def _ring_on_table(ring_m: float, tube_m: float
+                   ) -> tuple[PointCloud, SupportPlane, SpaceGrid]:
+    """A ring (a torus: ``ring_m`` from its axis to its tube's centre, its tube ``tube_m``
+    thick) lying on the table z = 0, seen from low cameras: its upper half and the outer side
+    down to 30 degrees below its widest level, not the lower inner quarter nor the bottom of
+    the hole. The space: food inside the tube, unknown in the lower half of the hole (the
+    unseen quarter with it) and under the outer wedge, empty elsewhere (the hole's upper half
+    seen through)."""
+    rng = np.random.default_rng(7)
+    theta, phi = rng.uniform(0, 2 * np.pi, (2, 60000))
+    out = np.stack([np.cos(theta), np.sin(theta), np.zeros_like(theta)], axis=1)
+    normals = np.cos(phi)[:, None] * out + np.sin(phi)[:, None] * UP
+    xyz = ring_m * out + tube_m * UP + tube_m * normals
+    seen = (np.sin(phi) > 0) | ((np.cos(phi) > 0) & (np.sin(phi) > -0.5))
+    pitch = 0.001
+    reach = ring_m + tube_m * 1.3
+    lower = np.array([-reach, -reach, 0.0])
+    axes_m = [lower[i] + pitch * np.arange(int(2 * reach / pitch) + 1) for i in range(2)]
+    axes_m.append(pitch * np.arange(int(2.6 * tube_m / pitch) + 1))
+    grid = np.stack(np.meshgrid(*axes_m, indexing="ij"), axis=-1).reshape(-1, 3)
+    across = np.linalg.norm(grid[:, :2], axis=1)
+    in_tube = np.hypot(across - ring_m, grid[:, 2] - tube_m) < tube_m
+    state = np.where(in_tube, FOOD, EMPTY).astype(np.int8)
+    lowest_seen = tube_m * 0.5
+    state[(grid[:, 2] < tube_m) & (across < ring_m)] = UNKNOWN
+    state[(grid[:, 2] < lowest_seen) & (across >= ring_m) & (across < reach)] = UNKNOWN
+    shape = tuple(len(a) for a in axes_m)
+    return (PointCloud(xyz[seen], None, normals[seen]),
+            SupportPlane((0.0, 0.0, 1.0), 0.0, 1000, 0.0),
+            SpaceGrid(lower, pitch, state.reshape(shape)))
+
+
+def test_a_ring_s_unseen_inner_wall_is_the_reflection_of_its_seen_one():
+    ring_m, tube_m = 0.03, 0.012
+    cloud, table, space = _ring_on_table(ring_m, tube_m)
+    centre = cloud.xyz.mean(axis=0)
+    # the ring's axis is unknown in the hole's lower half and meets its seen air above
+    heights = np.array([0.1, 0.5, 0.9, 1.5]) * tube_m
+    on_wall = np.outer(heights, UP) + [ring_m, 0, 0]
+    np.testing.assert_array_equal(hole_above(on_wall, centre, table, space),
+                                  [True, True, True, False])
+    seen_through = space.states_at(space.points()) == UNKNOWN
+    seen_through &= np.linalg.norm(space.points()[:, :2], axis=1) < ring_m - tube_m
+    state = space.state.copy().reshape(-1)
+    state[seen_through] = EMPTY
+    whole_hole_seen = SpaceGrid(space.lower, space.pitch_m, state.reshape(space.state.shape))
+    assert not hole_above(on_wall, centre, table, whole_hole_seen).any()
+
+    kept, record = underside_points(cloud, table, space, UndersideConfig())
+    assert record["symmetric"] and abs(record["mirror_height_mm"] - 1000 * tube_m) < 0.5
+    across = np.linalg.norm(kept.xyz[:, :2], axis=1)
+    off_tube = np.hypot(across - ring_m, kept.xyz[:, 2] - tube_m) - tube_m
+    assert np.abs(off_tube).max() < 0.001
+    inner = across < ring_m - tube_m * 0.3
+    assert inner.sum() > 200  # the hole's wall is kept: its normals face the axis
+    assert np.all(kept.xyz[inner, 2] < tube_m)
+
+    without, _ = underside_points(cloud, table, space, UndersideConfig(through_holes=False))
+    assert not (np.linalg.norm(without.xyz[:, :2], axis=1) < ring_m - tube_m * 0.3).any()
+
+
+def test_under_a_body_the_axis_meets_food_before_air():
+    r = 0.03
+    centre, cloud, table, _, space = _seen_from_above(r)
+    bottom = centre + np.array([[0.0, 0.0, -0.8 * r], [0.01, 0.0, -0.7 * r]])
+    assert not hole_above(bottom, centre, table, space).any()

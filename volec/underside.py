@@ -50,7 +50,7 @@ from scipy.spatial import cKDTree
 from volec.geometry import horizontal_axes
 from volec.meshing import SupportPlane, near_points
 from volec.pointcloud import PREDICTED_RGB, PointCloud
-from volec.space import UNKNOWN, SpaceGrid, thinned
+from volec.space import EMPTY, UNKNOWN, SpaceGrid, thinned
 
 
 @dataclass(frozen=True)
@@ -113,6 +113,13 @@ class UndersideConfig:
     """A reflected point is kept only where its normal's horizontal part, dotted with the unit
     horizontal direction from the cloud's centroid to it, exceeds this (facing away from the
     vertical axis)."""
+    through_holes: bool = True
+    """Also keep a reflected point that faces the vertical axis where the axis itself is
+    unknown at the point's height and, from there up, first meets seen-through space, not
+    food (:func:`hole_above`): the wall of a hole through the item (a ring's, a doughnut's)
+    whose lower part no camera saw into. The facing-out rule is for a hollow: the apple's stem
+    cavity mirrored under it, where the axis runs through the apple's flesh before it reaches
+    the cavity's air."""
     min_gap_m: float = 0.0015
     """Reflected points nearer than this to a measured point are left out."""
     voxel_m: float = 0.001
@@ -289,6 +296,31 @@ def facing_out(points: np.ndarray, normals: np.ndarray, centre: np.ndarray, up: 
     return np.einsum("ij,ij->i", away, level) > min_share * reach
 
 
+def hole_above(points: np.ndarray, centre: np.ndarray, support: SupportPlane,
+               space: SpaceGrid) -> np.ndarray:
+    """(N,) True where the vertical axis through ``centre`` is unknown ``space`` at each
+    point's height above the plate and, followed up from there, meets seen-empty space before
+    it meets food: a hole through the item (a doughnut's) that the cameras saw into from above
+    but not down to that height. False where the axis meets food first (a hollow under the
+    item's body: above it on the axis lies the body), or where it is seen empty at the
+    point's height (the hole seen through there bounds its own wall)."""
+    up = np.asarray(support.normal, float)
+    foot = centre - support.height_m(centre[None])[0] * up
+    step_m = space.pitch_m / 2
+    top_m = float(np.max(support.height_m(points), initial=0.0)) + space.pitch_m
+    steps_m = np.arange(0.0, top_m + space.pitch_m * 100, step_m)
+    states = space.states_at(foot + np.outer(steps_m, up))
+    # the first known state at or above each step: scanned down from the top
+    first_known = np.full(len(states), UNKNOWN, np.int8)
+    known = UNKNOWN
+    for i in range(len(states) - 1, -1, -1):
+        if states[i] != UNKNOWN:
+            known = states[i]
+        first_known[i] = known
+    at = np.clip(np.ceil(support.height_m(points) / step_m).astype(int), 0, len(states) - 1)
+    return (states[at] == UNKNOWN) & (first_known[at] == EMPTY)
+
+
 def underside_points(observed: PointCloud, support: SupportPlane, space: SpaceGrid,
                      cfg: UndersideConfig) -> tuple[PointCloud, dict[str, Any]]:
     """The reflected points (normals set, coloured as a prior's) that land in ``space``'s
@@ -308,9 +340,12 @@ def underside_points(observed: PointCloud, support: SupportPlane, space: SpaceGr
         upper = height > fit.height_m
         points = reflected(observed.xyz[upper], height[upper], fit.height_m, up, fit.squash)
         normals = reflected_normals(observed.normals[upper], up, fit.squash)
-        keep = ((support.height_m(points) > 0) & (space.states_at(points) == UNKNOWN)
-                & facing_out(points, normals, observed.xyz.mean(axis=0), up,
-                             cfg.min_facing_out))
+        centre = observed.xyz.mean(axis=0)
+        keep = (support.height_m(points) > 0) & (space.states_at(points) == UNKNOWN)
+        away = facing_out(points, normals, centre, up, cfg.min_facing_out)
+        if cfg.through_holes:
+            away |= hole_above(points, centre, support, space)
+        keep &= away
         cloud = PointCloud(points[keep], None, normals[keep])
         cloud = thinned(cloud.subset(~near_points(cloud.xyz, observed.xyz, cfg.min_gap_m)),
                         cfg.voxel_m)
