@@ -311,3 +311,24 @@ def test_the_measured_share_of_a_sphere_seen_on_its_upper_half_is_a_half():
     half = 0.5 + 0.001 / (2 * 0.03)
     assert measured_surface_share(sphere, upper, 0.001) == pytest.approx(half, abs=0.005)
     assert measured_surface_share(sphere, np.zeros((0, 3)), 0.001) == 0.0
+
+
+def test_a_prior_s_floor_under_a_seen_hole_is_dropped_and_nothing_else():
+    from tests.test_underside import _ring_on_table
+    from volec.estimate import clear_of_hole
+    from volec.pointcloud import PointCloud
+
+    ring_m, tube_m = 0.03, 0.012
+    observed, table, space = _ring_on_table(ring_m, tube_m)
+    angle = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    around = np.column_stack([np.cos(angle), np.sin(angle), np.zeros_like(angle)])
+    floor = 0.5 * (ring_m - tube_m) * around + [0, 0, 0.001]  # a network's floor in the hole
+    wedge = (ring_m + 0.6 * tube_m) * around + [0, 0, 0.002]  # under the outer side
+    cloud = observed.joined(PointCloud(np.vstack([floor, wedge])))
+    centre = observed.xyz.mean(axis=0)
+    cleared, dropped = clear_of_hole(cloud, len(observed), centre, table, space)
+    assert dropped == len(floor)
+    np.testing.assert_array_equal(cleared.xyz, observed.joined(PointCloud(wedge)).xyz)
+    # the observed points are never dropped, even inside the footprint
+    everything, none = clear_of_hole(cloud, len(cloud), centre, table, space)
+    assert none == 0 and len(everything) == len(cloud)

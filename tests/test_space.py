@@ -18,6 +18,7 @@ from volec.space import (
     SpaceConfig,
     SpaceGrid,
     observed_space,
+    through_hole,
     visual_hull_mesh,
     volume_bounds,
 )
@@ -205,3 +206,43 @@ def test_the_points_of_a_state_are_those_the_whole_grid_gives():
     grid = SpaceGrid(np.array([0.1, -0.2, 0.3]), 0.002, state)
     for s in (EMPTY, FOOD, UNKNOWN):
         np.testing.assert_allclose(grid.points_in(s), grid.points()[state.ravel() == s])
+
+
+def test_a_hole_seen_into_from_above_has_a_footprint_under_its_narrowest_seen_level():
+    from tests.test_underside import _ring_on_table
+
+    ring_m, tube_m = 0.03, 0.012
+    cloud, table, space = _ring_on_table(ring_m, tube_m)
+    hole = through_hole(space, cloud.xyz.mean(axis=0), table)
+    assert hole is not None
+    # the ring's axis is unknown up to its mid-height and seen empty above
+    assert tube_m - 0.001 <= hole.level_m <= tube_m + 0.002
+    points = np.array([[0.0, 0.0, 0.3 * tube_m],  # the hole's unseen floor, on the axis
+                       [ring_m - 1.3 * tube_m, 0.0, 0.002],  # near its wall
+                       [ring_m, 0.0, 0.3 * tube_m],  # in the tube
+                       [ring_m + 1.2 * tube_m, 0.0, 0.002],  # outside the ring
+                       [0.0, 0.0, 1.5 * tube_m]])  # in the hole, above the level
+    np.testing.assert_array_equal(hole.below(points, table), [True, True, False, False, False])
+
+
+def test_no_footprint_where_the_hole_was_seen_through_or_is_open_or_there_is_none():
+    from tests.test_rims import _seen_from_above
+    from tests.test_underside import _ring_on_table
+
+    ring_m, tube_m = 0.03, 0.012
+    cloud, table, space = _ring_on_table(ring_m, tube_m)
+    grid = space.points()
+    state = space.state.reshape(-1)
+
+    def with_state(where: np.ndarray, value: int) -> SpaceGrid:
+        changed = state.copy()
+        changed[where] = value
+        return SpaceGrid(space.lower, space.pitch_m, changed.reshape(space.state.shape))
+
+    seen_to_the_plate = with_state(np.linalg.norm(grid[:, :2], axis=1) < ring_m - tube_m, EMPTY)
+    assert through_hole(seen_to_the_plate, cloud.xyz.mean(axis=0), table) is None
+    # a crescent: the ring cut open on one side is no hole, its inside is open to the air
+    cut = with_state((np.abs(grid[:, 1]) < 0.004) & (grid[:, 0] > 0), EMPTY)
+    assert through_hole(cut, cloud.xyz.mean(axis=0), table) is None
+    centre, sphere, plate, _, sphere_space = _seen_from_above(0.03)
+    assert through_hole(sphere_space, centre, plate) is None

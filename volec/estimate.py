@@ -110,6 +110,7 @@ from volec.space import (
     SpaceGrid,
     VolumeBounds,
     observed_space,
+    through_hole,
     volume_bounds,
 )
 from volec.trust import Reason, TrustConfig, TrustFacts, assess
@@ -150,6 +151,14 @@ class EstimateConfig:
     (full orbits 0.78 -> 0.80 %, half 1.20 -> 1.37 %, sparse 1.07 -> 1.17 %; README,
     Completion). A completion setting, not the rims' own: the estimate's basis, rims
     included, is the same either way."""
+    priors_clear_of_holes: bool = True
+    """Drop the completion's points (the half-turn's and the network's) that lie under a hole
+    through the food seen into from above but not down to the plate, inside the hole's
+    cross-section at the lowest height the cameras saw through it
+    (:func:`volec.space.through_hole`): a doughnut seen from low cameras. The network, which
+    learnt food without holes, put a floor of points on the plate there and the mesh closed
+    the hole's lower part over them. The underside's reflected wall
+    (:attr:`volec.underside.UndersideConfig.through_holes`) is kept."""
     checkpoint: str = ""
     """Completion checkpoint; empty: the one shipped with volec."""
     keyframes: KeyframeConfig = field(default_factory=KeyframeConfig)
@@ -517,6 +526,12 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     observed = masked
     if rims is not None and len(rims):
         observed, cloud = with_rims(masked, cloud, rims)
+    if completion is not None and cfg.priors_clear_of_holes and plane is not None \
+            and space is not None:
+        cloud, cleared = clear_of_hole(cloud, len(observed), observed.xyz.mean(axis=0), plane,
+                                       space)
+        if cleared:
+            summary = {**(summary or {}), "dropped_under_hole": cleared}
     if (completion is not None and uses_underside(cfg) and plane is not None
             and space is not None and observed.normals is not None):
         below, record = underside_points(observed, plane, space, cfg.underside)
@@ -552,6 +567,20 @@ def food_mesh(masked: PointCloud, support: tuple[SupportPlane | None, str | None
     return FoodMesh(cloud, mesh, volume, plane, problem, summary, share,
                     {"completion_s": round(completion_s, 2), "meshing_s": round(meshing_s, 2)},
                     skipped, len(observed), measured)
+
+
+def clear_of_hole(cloud: PointCloud, n_observed: int, centre: np.ndarray,
+                  support: SupportPlane, space: SpaceGrid) -> tuple[PointCloud, int]:
+    """``cloud`` without its prior's points (those after the first ``n_observed``) under the
+    hole through the food around the vertical axis through ``centre``
+    (:func:`volec.space.through_hole`; the whole cloud where there is none), and how many were
+    dropped."""
+    hole = through_hole(space, centre, support)
+    if hole is None:
+        return cloud, 0
+    drop = np.zeros(len(cloud), bool)
+    drop[n_observed:] = hole.below(cloud.xyz[n_observed:], support)
+    return cloud.subset(~drop), int(drop.sum())
 
 
 def uses_underside(cfg: EstimateConfig) -> bool:

@@ -29,6 +29,10 @@ taken as empty, and with all unknown space taken as food.
   faint patch dense stereo missed.
 
 When unknown space reaches the grid's border the upper bound is not closed (``high_open``).
+
+Along the food's vertical axis the states tell a hole through it from a hollow under it
+(:func:`through_hole`): a doughnut's axis is unknown low down and seen empty above, an apple's
+runs into food.
 """
 
 from __future__ import annotations
@@ -152,6 +156,90 @@ class SpaceGrid:
         out[inside] = self.state[tuple(index[inside].T)]
         return out
 
+
+
+def axis_states(space: SpaceGrid, centre: np.ndarray, support: SupportPlane
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The vertical axis through ``centre``, sampled every half grid step from the plate up
+    past the grid's top: the samples' heights above the plate (K,) and their states (K,)."""
+    up = np.asarray(support.normal, float)
+    foot = centre - support.height_m(np.asarray(centre, float)[None])[0] * up
+    reach_m = float(np.linalg.norm(np.asarray(space.state.shape) * space.pitch_m))
+    corners = space.lower + np.array(list(product(*[(0.0, reach_m)] * 3)))
+    top_m = float(support.height_m(corners).max()) + space.pitch_m
+    heights_m = np.arange(0.0, max(top_m, space.pitch_m), space.pitch_m / 2)
+    return heights_m, space.states_at(foot + np.outer(heights_m, up))
+
+
+def first_known_above(states: np.ndarray) -> np.ndarray:
+    """(K,) for each of ``states`` (along a line), the first state at or after it that is
+    not :data:`UNKNOWN` (UNKNOWN where none is)."""
+    known = np.flatnonzero(states != UNKNOWN)
+    out = np.full(len(states), UNKNOWN, np.int8)
+    if len(known):
+        nxt = np.searchsorted(known, np.arange(len(states)))
+        has = nxt < len(known)
+        out[has] = states[known[nxt[has]]]
+    return out
+
+
+@dataclass(frozen=True)
+class HoleFootprint:
+    """Where a hole through the food lies, seen into from above but not down to the plate
+    (a doughnut's from low cameras): the open cross-section around the vertical axis at the
+    lowest height the axis was seen empty with unknown space below (:func:`through_hole`)."""
+
+    foot_m: np.ndarray
+    """The axis's foot on the plate (3,), metres."""
+    axes: np.ndarray
+    """Two horizontal unit vectors (2, 3) spanning the cross-section."""
+    pitch_m: float
+    inside: np.ndarray
+    """(n, n) the cross-section's cells that are the hole, the axis at the centre cell."""
+    level_m: float
+    """The height above the plate of the cross-section, metres."""
+
+    def below(self, points: np.ndarray, support: SupportPlane) -> np.ndarray:
+        """(N,) which ``points`` lie in the hole's footprint, lower than its level."""
+        rel = np.asarray(points, float) - self.foot_m
+        half = self.inside.shape[0] // 2
+        cells = np.round(rel @ self.axes.T / self.pitch_m).astype(int) + half
+        ok = ((cells >= 0) & (cells < self.inside.shape[0])).all(axis=1)
+        out = np.zeros(len(rel), bool)
+        out[ok] = self.inside[cells[ok, 0], cells[ok, 1]]
+        return out & (support.height_m(points) < self.level_m)
+
+
+def through_hole(space: SpaceGrid, centre: np.ndarray, support: SupportPlane
+                 ) -> HoleFootprint | None:
+    """The hole through the food around the vertical axis through ``centre``, where the
+    axis is unknown space below a height and seen empty just above it (no camera saw down
+    into the hole's lower part), and the cross-section there that is not food, connected to
+    the axis, is closed by food on every side (a crescent's open side is no hole). None
+    otherwise."""
+    from scipy import ndimage
+
+    from volec.geometry import horizontal_axes
+
+    heights_m, states = axis_states(space, centre, support)
+    above = first_known_above(states)
+    under_seen = np.flatnonzero((states == UNKNOWN) & (above == EMPTY))
+    if not len(under_seen):
+        return None
+    level = under_seen[0] + int(np.argmax(states[under_seen[0]:] != UNKNOWN))
+    up = np.asarray(support.normal, float)
+    axes = np.array(horizontal_axes(up))
+    foot = centre - support.height_m(np.asarray(centre, float)[None])[0] * up
+    half = int(np.ceil(max(space.state.shape) * np.sqrt(2)))
+    offsets = space.pitch_m * np.arange(-half, half + 1)
+    grid = np.stack(np.meshgrid(offsets, offsets, indexing="ij"), axis=-1)
+    cross = foot + heights_m[level] * up + grid.reshape(-1, 2) @ axes
+    open_ = (space.states_at(cross) != FOOD).reshape(grid.shape[:2])
+    labels, _ = ndimage.label(open_)  # four-connected: a diagonal gap does not leak
+    hole = labels == labels[half, half]
+    if hole[0].any() or hole[-1].any() or hole[:, 0].any() or hole[:, -1].any():
+        return None
+    return HoleFootprint(foot, axes, space.pitch_m, hole, float(heights_m[level]))
 
 
 def grid_frame(cloud: PointCloud, support: SupportPlane | None, cfg: SpaceConfig

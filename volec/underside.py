@@ -32,7 +32,10 @@ symmetric and gets nothing.
 Otherwise only what lands in unknown space, above the plate, away from the measured points, is
 kept, as a prior's points (the meshing's checks drop them where the masks or the enclosed
 space disagree), and only where its normal faces away from the item's vertical axis: a hollow
-(an apple's stem cavity mirrored under it) does not bound the wedge.
+(an apple's stem cavity mirrored under it) does not bound the wedge. A hole through the item
+does: where the axis is unknown at a point's height and seen empty higher up (a doughnut's
+hole seen into from above, not down to the plate), a point facing the axis is its wall
+(:func:`hole_above`); under an apple the axis runs into the flesh first.
 
 No library fits a mirror plane with a visibility model, hence this small search (the rotation
 baseline's truncated-distance score over seen space).
@@ -50,7 +53,7 @@ from scipy.spatial import cKDTree
 from volec.geometry import horizontal_axes
 from volec.meshing import SupportPlane, near_points
 from volec.pointcloud import PREDICTED_RGB, PointCloud
-from volec.space import EMPTY, UNKNOWN, SpaceGrid, thinned
+from volec.space import EMPTY, UNKNOWN, SpaceGrid, axis_states, first_known_above, thinned
 
 
 @dataclass(frozen=True)
@@ -304,21 +307,9 @@ def hole_above(points: np.ndarray, centre: np.ndarray, support: SupportPlane,
     but not down to that height. False where the axis meets food first (a hollow under the
     item's body: above it on the axis lies the body), or where it is seen empty at the
     point's height (the hole seen through there bounds its own wall)."""
-    up = np.asarray(support.normal, float)
-    foot = centre - support.height_m(centre[None])[0] * up
-    step_m = space.pitch_m / 2
-    top_m = float(np.max(support.height_m(points), initial=0.0)) + space.pitch_m
-    steps_m = np.arange(0.0, top_m + space.pitch_m * 100, step_m)
-    states = space.states_at(foot + np.outer(steps_m, up))
-    # the first known state at or above each step: scanned down from the top
-    first_known = np.full(len(states), UNKNOWN, np.int8)
-    known = UNKNOWN
-    for i in range(len(states) - 1, -1, -1):
-        if states[i] != UNKNOWN:
-            known = states[i]
-        first_known[i] = known
-    at = np.clip(np.ceil(support.height_m(points) / step_m).astype(int), 0, len(states) - 1)
-    return (states[at] == UNKNOWN) & (first_known[at] == EMPTY)
+    heights_m, states = axis_states(space, centre, support)
+    at = np.clip(np.searchsorted(heights_m, support.height_m(points)), 0, len(states) - 1)
+    return (states[at] == UNKNOWN) & (first_known_above(states)[at] == EMPTY)
 
 
 def underside_points(observed: PointCloud, support: SupportPlane, space: SpaceGrid,
