@@ -146,6 +146,23 @@ def test_a_lens_flatter_below_rests_on_the_squashed_reflection_of_its_top():
     assert np.median(inside(plain.xyz)) > 0.0004  # the cut reflection lies outside the lens
 
 
+def test_a_lens_fuller_below_rests_on_the_stretched_reflection_of_its_top():
+    # the lower half 1.15 times the upper's depth: reflected plainly at the level the fit
+    # finds (13.5 mm, the widest at 13.8), the top hovers above the plate and lies 0.38 mm
+    # inside the lower half (median); stretched down to rest on the plate, 0.06 mm outside
+    top_m, bottom_m = 0.012, 0.0138
+    cloud, table, space, inside = _lens(0.03, top_m, bottom_m, 0.5)
+    plain, plain_record = underside_points(cloud, table, space,
+                                           UndersideConfig(stretch_to_plate=False))
+    points, record = underside_points(cloud, table, space, UndersideConfig())
+    assert record["symmetric"] and len(points) > 100
+    assert record["mirror_height_mm"] == plain_record["mirror_height_mm"]  # the same level
+    assert plain_record["squash"] == 1.0 and record["squash"] > 1.05
+    assert np.median(inside(plain.xyz)) < -0.0003
+    assert np.median(np.abs(inside(points.xyz))) < 0.6 * np.median(np.abs(inside(plain.xyz)))
+    assert points.xyz[:, 2].min() < plain.xyz[:, 2].min() - 0.001
+
+
 def test_a_symmetric_item_is_reflected_plainly():
     # a sphere's mirror lands its top on the plate: nothing to squash
     _, cloud, table, _, space = _seen_from_above(0.03)
