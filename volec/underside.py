@@ -24,11 +24,11 @@ so a reflection that would reach below the plate (the food more than twice the l
 compressed vertically about the level until its lowest point rests on the plate: a lower part
 flatter than the upper one, as under a pasty or a bun, is the upper one squashed. One that
 would hover above the plate (a bottom fuller than the top, as an apple's under its stem's dip)
-is stretched down to it. Cut by the
-plate instead, the plain reflection would lay a flat disc under a dome-topped item. The top
-that counts is the body's (:func:`body_top`): a thin part standing on it, as an apple's stalk,
-would rest its mirror image on the plate and lift the reflected body off it, and so would the
-stereo noise scattered above a flat top, so the top is read on locally averaged heights. A
+is stretched down to it. Cut by the plate instead, the plain reflection would lay a flat disc
+under a dome-topped item. The top that counts is the body's (:func:`body_top`): a thin part
+standing on it, as an apple's stalk, would rest its mirror image on the plate and lift the
+reflected body off it, and so would the stereo noise scattered above a flat top, so the top is
+read on locally averaged heights. A
 cloud that half its reflected points do not meet within ``max_median_distance_m`` is not
 symmetric and gets nothing.
 Otherwise only what lands in unknown space, above the plate, away from the measured points, is
@@ -91,7 +91,7 @@ class UndersideConfig:
     full orbits, 1.22 -> 1.06 % on half orbits, 1.30 -> 1.19 % sparse, 1.29 -> 1.18 % on
     faint skins and 1.20 -> 1.24 % from low cameras."""
     max_stretch: float = 1.2
-    """The largest vertical stretch (the benchmark's largest was 1.11)."""
+    """The largest vertical stretch (the benchmark's largest was 1.10, the low apple's)."""
     min_hover_m: float = 0.0003
     """A reflection hovering less than this above the plate is left as it is, and a higher one
     is stretched down to this height: the body's top is read on averaged heights
@@ -163,7 +163,8 @@ class LevelFit:
     symmetric: bool
     squash: float = 1.0
     """The reflection's vertical scale below the level (1: a plain mirror; less where the
-    food rests on the plate, :attr:`UndersideConfig.rest_on_plate`)."""
+    food rests on the plate, :attr:`UndersideConfig.rest_on_plate`; more where the plain
+    mirror would hover above it, :attr:`UndersideConfig.stretch_to_plate`)."""
     body_top_m: float = float("nan")
     """The height above the plate of the food's body top that sets the squash
     (:func:`body_top`), metres."""
