@@ -158,12 +158,18 @@ class SpaceGrid:
 
 
 
+def axis_foot(centre: np.ndarray, support: SupportPlane) -> np.ndarray:
+    """(3,) where the vertical axis through ``centre`` meets the ``support`` plane."""
+    centre = np.asarray(centre, float)
+    return centre - support.height_m(centre[None])[0] * np.asarray(support.normal, float)
+
+
 def axis_states(space: SpaceGrid, centre: np.ndarray, support: SupportPlane
                 ) -> tuple[np.ndarray, np.ndarray]:
     """The vertical axis through ``centre``, sampled every half grid step from the plate up
     past the grid's top: the samples' heights above the plate (K,) and their states (K,)."""
     up = np.asarray(support.normal, float)
-    foot = centre - support.height_m(np.asarray(centre, float)[None])[0] * up
+    foot = axis_foot(centre, support)
     reach_m = float(np.linalg.norm(np.asarray(space.state.shape) * space.pitch_m))
     corners = space.lower + np.array(list(product(*[(0.0, reach_m)] * 3)))
     top_m = float(support.height_m(corners).max()) + space.pitch_m
@@ -229,7 +235,7 @@ def through_hole(space: SpaceGrid, centre: np.ndarray, support: SupportPlane
     level = under_seen[0] + int(np.argmax(states[under_seen[0]:] != UNKNOWN))
     up = np.asarray(support.normal, float)
     axes = np.array(horizontal_axes(up))
-    foot = centre - support.height_m(np.asarray(centre, float)[None])[0] * up
+    foot = axis_foot(centre, support)
     half = int(np.ceil(max(space.state.shape) * np.sqrt(2)))
     offsets = space.pitch_m * np.arange(-half, half + 1)
     grid = np.stack(np.meshgrid(offsets, offsets, indexing="ij"), axis=-1)

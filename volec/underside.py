@@ -271,10 +271,12 @@ def fit_level(xyz: np.ndarray, normals: np.ndarray, height_m: np.ndarray, up: np
     if (sample_h < band_m).sum() < cfg.min_checked_points:
         band_m = np.inf
 
+    # the level is chosen without the stretch, which only moves the points it reflects
+    unstretched = replace(cfg, stretch_to_plate=False)
+
     def score(level: float) -> tuple[float, float]:
         upper = sample_h > level
-        # the level is chosen without the stretch, which only moves the points it reflects
-        squash = resting_squash(level, body, replace(cfg, stretch_to_plate=False))
+        squash = resting_squash(level, body, unstretched)
         moved = reflected(sample[upper], sample_h[upper], level, up, squash)
         # the plain mirror keeps its own arithmetic, so its levels come out bit for bit
         moved_h = (2.0 * level - sample_h[upper] if squash == 1.0
