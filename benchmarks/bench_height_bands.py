@@ -40,10 +40,10 @@ from volec.synth import load_truth
 from volec.tables import write_table
 
 
-def truth_from_reconstruction(folder: Path) -> np.ndarray:
-    """(4, 4) the similarity that lays the SfM camera centres in ``folder/work`` on the exact
-    ones of ``folder/ground_truth``."""
-    sfm = load_sfm(folder / "work")
+def truth_from_reconstruction(folder: Path, work: Path) -> np.ndarray:
+    """(4, 4) the similarity that lays the SfM camera centres in ``work`` on the exact ones
+    of ``folder/ground_truth``."""
+    sfm = load_sfm(work)
     exact = read_transforms_json(folder / "ground_truth" / "transforms_exact.json")
     by_name = {Path(f.name).stem: f.T_world_from_cam[:3, 3] for f in exact.frames}
     names = [Path(n).stem for n, ok in zip(sfm.frame_names, sfm.registered, strict=True) if ok]
@@ -62,14 +62,16 @@ def cross_section_mm2(mesh: trimesh.Trimesh, height_m: float, step_m: float = 0.
 
 def item_rows(item: str, scenario: str, mesh_name: str, edges_mm: list[float]) -> list[dict]:
     """One row per band and orientation of ``item``'s mesh (see the module docstring)."""
-    folder = scenarios(False)[scenario].folder(experiment_dir(False), item)
+    chosen = scenarios(False)[scenario]
+    folder = chosen.folder(experiment_dir(False), item)
+    work = chosen.work(folder)  # a subset scenario's stages lie beside the full orbit's
     if not np.allclose(load_truth(folder)["world_up"], [0.0, 1.0, 0.0]):
         raise SystemExit(f"{item}: world_up is not +y; the sections here are horizontal in y")
-    T = truth_from_reconstruction(folder)
+    T = truth_from_reconstruction(folder, work)
     truth = trimesh.load(folder / "ground_truth" / "food_mesh.ply")
-    mesh = trimesh.load(folder / "work" / mesh_name)
+    mesh = trimesh.load(work / mesh_name)
     mesh.apply_transform(T)
-    cloud = read_ply(folder / "work" / "food_masked.ply").xyz @ T[:3, :3].T + T[:3, 3]
+    cloud = read_ply(work / "food_masked.ply").xyz @ T[:3, :3].T + T[:3, 3]
     points, normals = sample_surface_with_normals(mesh, 40000)
     signed = signed_distances_to_surface(points, truth)
     truth_points, truth_normals = sample_surface_with_normals(truth, 40000)

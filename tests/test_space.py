@@ -208,6 +208,41 @@ def test_the_points_of_a_state_are_those_the_whole_grid_gives():
         np.testing.assert_allclose(grid.points_in(s), grid.points()[state.ravel() == s])
 
 
+@pytest.mark.parametrize(("normal", "plate_z_m"), [((0.0, 0.0, 1.0), 0.0007),
+                                                  ((0.08, -0.05, 1.0), 0.0007),
+                                                  ((0.0, 0.0, -1.0), 0.0013)])
+def test_a_point_above_the_plate_never_takes_the_empty_state_of_the_grid_below_it(
+        normal, plate_z_m):
+    # the plate lies between two layers of the grid (z = 0 and 2 mm), 0.7 mm past the layer
+    # below it; below it all is empty, above it nothing was seen (unknown): a point a fraction
+    # of a step above the plate is unknown, not empty
+    n = np.asarray(normal) / np.linalg.norm(normal)
+    plate = SupportPlane(tuple(n), -plate_z_m * n[2], 1000, 0.0)
+    lower, pitch = np.array([-0.02, -0.02, -0.02]), 0.002
+    grid = SpaceGrid(lower, pitch, np.zeros((21, 21, 21), np.int8))
+    state = np.where(plate.height_m(grid.points()) < 0, EMPTY, UNKNOWN).astype(np.int8)
+    with_floor = SpaceGrid(lower, pitch, state.reshape(grid.state.shape), plate)
+    without = SpaceGrid(lower, pitch, with_floor.state)
+    rng = np.random.default_rng(3)
+    points = rng.uniform(-0.015, 0.015, size=(20000, 3))
+    height = plate.height_m(points)
+    above, below = (height >= 0) & (height < 0.015), height < -0.002
+    assert (with_floor.states_at(points[above]) == UNKNOWN).all()
+    near = above & (height < 0.0003)  # what the floor mends
+    assert (without.states_at(points[near]) == EMPTY).mean() > 0.3
+    assert (with_floor.states_at(points[below]) == EMPTY).all()
+    # away from the plate the floor changes nothing
+    far = np.abs(height) > 0.004
+    np.testing.assert_array_equal(with_floor.states_at(points[far]),
+                                  without.states_at(points[far]))
+
+
+def test_the_space_knows_its_plate():
+    cloud, views = _scene(360.0)
+    assert observed_space(cloud, views, TABLE, SpaceConfig(pitch_m=0.003)).floor == TABLE
+    assert observed_space(cloud, views, None, SpaceConfig(pitch_m=0.003)).floor is None
+
+
 def test_a_hole_seen_into_from_above_has_a_footprint_under_its_narrowest_seen_level():
     from tests.test_underside import _ring_on_table
 

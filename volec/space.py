@@ -123,6 +123,9 @@ class SpaceGrid:
     pitch_m: float
     state: np.ndarray
     """(I, J, K) int8: :data:`EMPTY`, :data:`FOOD` or :data:`UNKNOWN`."""
+    floor: SupportPlane | None = None
+    """The support plane below which every grid point is empty (None: none). A point above it
+    is not given the state of a grid point below it (:meth:`states_at`)."""
 
     @property
     def cell_ml(self) -> float:
@@ -148,13 +151,33 @@ class SpaceGrid:
 
     def states_at(self, points: np.ndarray) -> np.ndarray:
         """(N,) the state of the grid point nearest to each of ``points`` (EMPTY beyond the
-        grid)."""
-        index = np.round((np.asarray(points, float) - self.lower) / self.pitch_m).astype(int)
+        grid); for a point above the ``floor``, of the nearest one above it."""
+        points = np.asarray(points, float)
+        index = np.round((points - self.lower) / self.pitch_m).astype(int)
+        if self.floor is not None:
+            index = self._above_floor(points, index)
         shape = np.asarray(self.state.shape)
         inside = ((index >= 0) & (index < shape)).all(axis=1)
         out = np.full(len(index), EMPTY, np.int8)
         out[inside] = self.state[tuple(index[inside].T)]
         return out
+
+    def _above_floor(self, points: np.ndarray, index: np.ndarray) -> np.ndarray:
+        """``index`` (N, 3) of the grid points nearest ``points``, those of points on or above
+        the floor whose grid point lies below it moved up along the grid axis nearest the
+        floor's normal (at most two steps). The plate's plane falls anywhere between two
+        layers of the grid, and below it all is empty: a point half a step above the plate,
+        under the food where no camera looked, took that empty state as if seen through."""
+        normal = np.asarray(self.floor.normal, float)
+        axis = int(np.argmax(np.abs(normal)))
+        step = 1 if normal[axis] > 0 else -1
+        above = self.floor.height_m(points) >= 0
+        for _ in range(2):
+            low = above & (self.floor.height_m(self.lower + self.pitch_m * index) < 0)
+            if not low.any():
+                break
+            index[low, axis] += step
+        return index
 
 
 
@@ -472,7 +495,7 @@ def observed_space(cloud: PointCloud, views: list[SilhouetteView],
     up = None if support is None else np.asarray(support.normal, float)
     food = _enclosed(stop, open_, ray_directions(up, cfg.max_ray_down)) & open_
     state = np.where(food, FOOD, np.where(open_, UNKNOWN, EMPTY)).astype(np.int8)
-    return SpaceGrid(lower, cfg.pitch_m, state)
+    return SpaceGrid(lower, cfg.pitch_m, state, support)
 
 
 @dataclass(frozen=True)
