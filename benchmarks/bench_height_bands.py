@@ -4,7 +4,9 @@ misplacement and scale taken out.
 Usage: .venv/bin/python benchmarks/bench_height_bands.py ITEM [ITEM ...] [--scenario full_orbit]
        [--mesh mesh_completion.ply] [--bands 0 1.5 4 8 15]
 
-Per item, the mesh a volume benchmark left in data/bench-sfm/ITEM-SCENARIO/work (``--mesh``:
+Per item, the mesh a volume benchmark left in the scenario's work folder
+(data/bench-sfm/ITEM-SCENARIO/work; a subset of the full orbit's frames, such as ``sparse``,
+has its own beside it: data/bench-sfm/ITEM-full_orbit/work-sparse) (``--mesh``:
 ``mesh_completion.ply`` is the default method's, ``mesh_no_completion.ply`` the baseline's) and
 its masked cloud are mapped onto the ground truth by the similarity that lays the SfM camera
 centres on the exact ones (read only to score), so that a reconstruction the poses moved or
