@@ -19,7 +19,8 @@ taken as empty, and with all unknown space taken as food.
   inside them (``food_depth_in_masks``: else the plate hidden behind the item shows through
   the food cloud's holes), and ``depth_min_views`` views must agree (a few food points with
   wrong normals show through the same holes).
-  Below the support plane is empty too.
+  Below the support plane is empty too; a point on or above it never reads the empty grid
+  point below it (:attr:`SpaceGrid.floor`).
 - **Food**: space enclosed by what was seen: just behind the observed surface, or a point
   from which a ray in each grid direction (26, or with a support plane those not pointing
   down: see ``SpaceConfig.max_ray_down``) meets observed surface or the support plane before
