@@ -181,7 +181,6 @@ class SpaceGrid:
         return index
 
 
-
 def axis_foot(centre: np.ndarray, support: SupportPlane) -> np.ndarray:
     """(3,) where the vertical axis through ``centre`` meets the ``support`` plane."""
     centre = np.asarray(centre, float)
