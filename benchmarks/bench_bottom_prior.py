@@ -12,7 +12,8 @@ plate, by a quadratic and by a straight line, never widening downwards; and with
 completion network's points below the observed floor (the 1st percentile of the masked
 cloud's heights) dropped. Prints the volume error (%) of each, against the ground truth (read
 only to score). The priors are functions here, patched into ``volec.estimate`` for the run,
-because they measured worse than the default (README, "Where the remaining error lies").
+because they measured worse than the default (docs/measurements.md, "Where the remaining
+error lies").
 """
 
 from __future__ import annotations

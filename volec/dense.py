@@ -91,7 +91,7 @@ class DenseConfig:
     one thread: capsicum 14.7 against 10.1 s, apple 11.9 against 8.1 s) for the same volume
     accuracy (Table II default MAPE, 64/4 -> 48/3: full orbit 1.69 -> 1.66 %, half 3.20 ->
     3.19, sparse 2.61 -> 2.44, low 2.01 -> 1.72, smooth 2.02 -> 2.03) and a surface a few
-    hundredths of a millimetre further off (README, Reproducing)."""
+    hundredths of a millimetre further off (docs/measurements.md, Reproducing)."""
     source_angle_deg: tuple[float, float, float] = (4.0, 14.0, 40.0)
     """Triangulation angle at the object between reference and source camera: (smallest,
     preferred, largest), degrees."""
@@ -106,8 +106,8 @@ class DenseConfig:
     source is shared, so it costs only the larger window's box filters (1.11-1.22 times the
     dense time, measured on two items). Off by default: 11 raised the faint-skin coverage
     (exact poses: banana 77 -> 84 %, pear 66 -> 76 %) but moved the ``smooth`` scenario's
-    volume MAPE from 2.02 to 2.39 % (README, Completion): the fronto-parallel window is
-    biased on curved faint skin."""
+    volume MAPE from 2.02 to 2.39 % (docs/measurements.md, Completion): the fronto-parallel
+    window is biased on curved faint skin."""
     faint_texture_std: float = 0.02
     """With ``faint_window_px``: a reference window with less intensity standard deviation
     (0..1 scale) than this is faint and matched over the larger window."""
@@ -123,9 +123,9 @@ class DenseConfig:
     capsicum: 59.0 -> 70.7 % of the surface two cameras saw), but the added depths lie
     inside the surface (faint banana: median -0.66 -> -0.86 mm) and the volumes followed them
     in (default MAPE on those four 1.37 -> 2.29 %, on the full orbits of the apple, banana,
-    pear and orange 0.83 -> 1.84 %, the banana -0.6 -> -3.3 %; README, Dense cloud): the
-    refining sweeps at full resolution do not undo the large window's bias where the skin is
-    too faint for their own windows."""
+    pear and orange 0.83 -> 1.84 %, the banana -0.6 -> -3.3 %; docs/measurements.md, Dense
+    cloud): the refining sweeps at full resolution do not undo the large window's bias where
+    the skin is too faint for their own windows."""
     coarse_min_cosine: float = 0.0
     """With ``coarse_factor`` above 1 and this above 0: the first sweep runs at both
     resolutions, and a pixel starts from the coarse one's depth only where the surface that
@@ -134,7 +134,7 @@ class DenseConfig:
     full-resolution one's. Off: at 2 and 0.75 the ten faint skins' default MAPE went from
     1.61 to 1.40 % (p = 0.01) and their coverage up by 5 points, but the 21 full orbits'
     from 1.08 to 1.09 % with a slightly worse surface, and dense stereo took 1.2-1.3 times as
-    long (README, Dense cloud)."""
+    long (docs/measurements.md, Dense cloud)."""
     n_refine_hypotheses: int = 7
     """Depths tried per pixel in each refining sweep."""
     refine_span_planes: float = 0.5
@@ -148,20 +148,19 @@ class DenseConfig:
     food mask shrunk by this many pixels (working resolution); the plate's pixels keep the
     whole window (0: off, the default; without masks it does nothing). A window that reaches
     the food's outline is pulled behind the surface by the silhouette's edge and the plate
-    past it (README, Dense cloud). At 2, with the exact poses, the depths 0-2, 2-4 and 4-6
-    px inside the outline went from +3.9, +7.2 and +3.9 mm behind the surface along the ray
-    to -0.9, +0.5 and +1.2 mm (full-orbit banana; apple +2.8, +5.6, +3.1 to -2.3, -0.3,
-    +0.8 mm). But the default estimate lost volume with it (MAPE 0.78 -> 1.25 % on the 21
-    full orbits, p = 0.042, mean signed -0.26 -> -0.94 %; 1.40 -> 2.18 % on the ten faint
-    skins) while without completion nothing changed (1.45 -> 1.47 %, 1.92 -> 1.95 %): the
-    food-only windows lose the lowest band's depths, which each view sees near its outline
-    (apple: no masked point below 15.8 mm above the plate instead of 1.8 mm), and the
-    completion, which works from the cloud's lower edge, then places the underside further
-    in (README). Off: a food-only window must keep that band to help. Three
-    more box filters per hypothesis: the dense stage took 7.1-8.5 s instead of 5.0-6.1 s
-    (banana and apple full orbits, twice each, one capture at a time), more than issue 13's
-    quarter. The texture test (``min_texture_std``) still takes the whole window's
-    statistics."""
+    past it (docs/measurements.md, Dense cloud). At 2, with the exact poses, the depths 0-2,
+    2-4 and 4-6 px inside the outline went from +3.9, +7.2 and +3.9 mm behind the surface along
+    the ray to -0.9, +0.5 and +1.2 mm (full-orbit banana; apple +2.8, +5.6, +3.1 to -2.3, -0.3,
+    +0.8 mm). But the default estimate lost volume with it (MAPE 0.78 -> 1.25 % on the 21 full
+    orbits, p = 0.042, mean signed -0.26 -> -0.94 %; 1.40 -> 2.18 % on the ten faint skins)
+    while without completion nothing changed (1.45 -> 1.47 %, 1.92 -> 1.95 %): the food-only
+    windows lose the lowest band's depths, which each view sees near its outline (apple: no
+    masked point below 15.8 mm above the plate instead of 1.8 mm), and the completion, which
+    works from the cloud's lower edge, then places the underside further in
+    (docs/measurements.md). Off: a food-only window must keep that band to help. Three more box
+    filters per hypothesis: the dense stage took 7.1-8.5 s instead of 5.0-6.1 s (banana and
+    apple full orbits, twice each, one capture at a time), more than issue 13's quarter. The
+    texture test (``min_texture_std``) still takes the whole window's statistics."""
     refine_median_px: int = 0
     """Before each refining sweep, the inverse depths it starts from, and that its windows
     follow, are median-filtered over this many pixels square (3 or 5; 0: taken as they are).
@@ -178,10 +177,10 @@ class DenseConfig:
     saw instead of 72.5 %. Off by default: the added depths lie a little inside, and the
     volumes did not gain (21 full orbits: the default estimate's MAPE 0.78 -> 0.83 %, p =
     0.61, without completion 1.45 -> 1.34 %; the ten faint skins: 1.40 -> 1.38 %, p = 0.92;
-    README, Dense cloud and masking). With ``fill_min_views=1`` too the faint skins' coverage
-    reached 89.2 %, but the volumes went down with it (faint skins 1.40 -> 1.65 %, full
-    orbits 0.78 -> 0.87 %): the depths added on sides seen only at grazing angles lie
-    behind the surface (README)."""
+    docs/measurements.md, Dense cloud and masking). With ``fill_min_views=1`` too the faint
+    skins' coverage reached 89.2 %, but the volumes went down with it (faint skins 1.40 ->
+    1.65 %, full orbits 0.78 -> 0.87 %): the depths added on sides seen only at grazing angles
+    lie behind the surface (docs/measurements.md)."""
     depth_range_margin: float = 0.08
     """The sparse points' depth range (2nd to 98th percentile) is widened by this fraction."""
     min_ncc: float = 0.45
@@ -273,9 +272,9 @@ class DenseConfig:
     0.09), 1.07 -> 1.40 % on the sparse ones (p = 0.018) and 1.81 -> 1.95 % at low
     elevations, and without completion every scenario but the low one lost (full orbits
     1.45 -> 1.64 %, p = 0.046): the inward depths it removes were offsetting outward errors
-    elsewhere (README, Dense cloud). With the visual hull's silhouette margin at 0.25 px as
-    well, the losses without completion went, but not the default's on half orbits (1.64 %)
-    and sparse ones (1.36 %). Off until those are found."""
+    elsewhere (docs/measurements.md, Dense cloud). With the visual hull's silhouette margin at
+    0.25 px as well, the losses without completion went, but not the default's on half orbits
+    (1.64 %) and sparse ones (1.36 %). Off until those are found."""
     contour_gap_m: float = 0.003
     """With ``contour_margin_px``: how far, metres, the nearest depth from further inside an
     outline must be for a depth near one to be kept (it fills a hole). Larger than the depths'

@@ -148,9 +148,9 @@ class EstimateConfig:
     network's points under the item follow those few: shown the rims, the full-orbit apple's
     network volume stays +0.69 / +0.66 % with and without the masked points below 8 mm
     (-0.58 / -2.14 % without the rims). Off: on the benchmark the default gained nothing
-    (full orbits 0.78 -> 0.80 %, half 1.20 -> 1.37 %, sparse 1.07 -> 1.17 %; README,
-    Completion). A completion setting, not the rims' own: the estimate's basis, rims
-    included, is the same either way."""
+    (full orbits 0.78 -> 0.80 %, half 1.20 -> 1.37 %, sparse 1.07 -> 1.17 %;
+    docs/measurements.md, Where the remaining error lies). A completion setting, not the rims'
+    own: the estimate's basis, rims included, is the same either way."""
     priors_clear_of_holes: bool = True
     """Drop the completion's points (the half-turn's and the network's) that lie under a hole
     through the food seen into from above but not down to the plate, inside the hole's
@@ -388,8 +388,8 @@ def measured_surface_share(mesh: trimesh.Trimesh, measured_xyz: np.ndarray, reac
     ``reach_m`` of a point of ``measured_xyz`` (N, 3): how much of the surface stereo (or the
     outlines) measured, the rest being what the visual hull, the plate and the shape priors
     made of the gaps. Measured with the masked cloud alone (no rim points) at f682981: 0.59
-    on the benchmark's full orbits on average, 0.46-0.54 on its other scenarios (README,
-    Trusted, yet more than 2 % off)."""
+    on the benchmark's full orbits on average, 0.46-0.54 on its other scenarios
+    (docs/measurements.md, Trusted, yet more than 2 % off)."""
     if not len(mesh.faces):
         return 0.0
     points = sample_surface(mesh, samples, seed)

@@ -19,8 +19,8 @@ angles, which dense stereo drops) and where stereo left no point near.
 
 On the benchmark's full-orbit lemon (SfM poses, exact masks) the points lay a median 0.23 mm
 outside the true surface (p10 0.10, p90 0.45 mm, part of it the capture's 0.4 % scale
-error; ``benchmarks/bench_rims.py``); the README's "Rim points" paragraph (Completion) says
-what they do to the volumes.
+error; ``benchmarks/bench_rims.py``); the "Rim points" paragraph of docs/measurements.md
+(Completion) says what they do to the volumes.
 
 The visual hull itself (:func:`volec.meshing.silhouette_field`) is volec's; no library
 reconstructs surfaces from the tangency of outlines (the "rim" or "contour generator"

@@ -79,7 +79,8 @@ class SpaceConfig:
     front of them, inside the item, counts as seen through: 19.6 of the full-orbit orange's
     200 mL, 7.1 with this on. Alone (``depth_min_views`` 2) it made the default estimate's
     MAPE 0.78 -> 0.82 % on the full orbits, 1.20 -> 1.25 % on the half and 1.07 -> 1.20 % on
-    the sparse ones (README, Volume bounds); with six views it is the default."""
+    the sparse ones (docs/measurements.md, Volume from a capture); with six views it is the
+    default."""
     depth_min_views: int = 6
     """Views whose observed depth must lie beyond a point for it to be seen through (the
     visual hull's test keeps ``min_views``). A view whose food cloud has a hole shows the
@@ -91,8 +92,8 @@ class SpaceConfig:
     skins); at 6, 0.784 -> 0.766 % (full), 1.20 -> 1.21 % (half), 1.07 -> 1.10 % (sparse),
     1.40 -> 1.37 % (faint skins), 1.81 -> 1.84 % (low), none beyond the noise, while the
     true volume sorted empty over 20 full orbits fell 141 -> 70 mL (at 4 views) and the
-    bounds narrowed 15.4 -> 11.8 % of the truth (README, Volume bounds): the default since
-    2026-12-07."""
+    bounds narrowed 15.4 -> 11.8 % of the truth (docs/measurements.md, Volume from a
+    capture): the default since 2026-12-07."""
     depth_tolerance_m: float = 0.004
     """A point is in front of the surface a camera saw when nearer to it by more than this."""
     surface_reach_m: float = 0.003

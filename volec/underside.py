@@ -87,9 +87,9 @@ class UndersideConfig:
     level is still chosen without the stretch (:func:`fit_level`), so only the reflected
     points move. On the benchmark's full-orbit apple the plain reflection of its top hovered
     2.3 mm above the plate (its bottom fuller than its top): -1.76 % -> -0.57 %. Over the
-    benchmark (``bench_underside.py``, README) the default's MAPE went 0.740 -> 0.706 % on
-    full orbits, 1.22 -> 1.06 % on half orbits, 1.30 -> 1.19 % sparse, 1.29 -> 1.18 % on
-    faint skins and 1.20 -> 1.24 % from low cameras."""
+    benchmark (``bench_underside.py``, docs/measurements.md, Completion) the default's MAPE
+    went 0.740 -> 0.706 % on full orbits, 1.22 -> 1.06 % on half orbits, 1.30 -> 1.19 % sparse,
+    1.29 -> 1.18 % on faint skins and 1.20 -> 1.24 % from low cameras."""
     max_stretch: float = 1.2
     """The largest vertical stretch (the benchmark's largest was 1.10, the low apple's)."""
     min_hover_m: float = 0.0003

@@ -72,7 +72,8 @@ class CompletionConfig:
     orange's +0.44, -0.15, -0.18 and -0.53 %. With 4 the orange's spread went from 0.97 to
     0.11 points and the network alone gained a little on the benchmark (full orbits 1.41 ->
     1.32 %), but the default estimate did not (full 0.78 -> 0.80 %, sparse 1.07 -> 1.26 %;
-    README, Completion). 1: one prediction, the first of the seed's draws (the default)."""
+    docs/measurements.md, Where the remaining error lies). 1: one prediction, the first of the
+    seed's draws (the default)."""
 
 
 @dataclass(eq=False)
