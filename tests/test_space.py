@@ -3,6 +3,8 @@ unknown where nobody looked; the bounds it gives an estimate, against a sphere's
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -272,7 +274,7 @@ def test_no_footprint_where_the_hole_was_seen_through_or_is_open_or_there_is_non
     def with_state(where: np.ndarray, value: int) -> SpaceGrid:
         changed = state.copy()
         changed[where] = value
-        return SpaceGrid(space.lower, space.pitch_m, changed.reshape(space.state.shape))
+        return replace(space, state=changed.reshape(space.state.shape))  # keeps its floor
 
     seen_to_the_plate = with_state(np.linalg.norm(grid[:, :2], axis=1) < ring_m - tube_m, EMPTY)
     assert through_hole(seen_to_the_plate, cloud.xyz.mean(axis=0), table) is None

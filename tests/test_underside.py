@@ -2,6 +2,7 @@
 plate that no camera constrained."""
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -270,7 +271,7 @@ def test_a_ring_s_unseen_inner_wall_is_the_reflection_of_its_seen_one():
     seen_through &= np.linalg.norm(space.points()[:, :2], axis=1) < ring_m - tube_m
     state = space.state.copy().reshape(-1)
     state[seen_through] = EMPTY
-    whole_hole_seen = SpaceGrid(space.lower, space.pitch_m, state.reshape(space.state.shape))
+    whole_hole_seen = replace(space, state=state.reshape(space.state.shape))
     assert not hole_above(on_wall, centre, table, whole_hole_seen).any()
 
     kept, record = underside_points(cloud, table, space, UndersideConfig())
