@@ -4,11 +4,12 @@ stages it made (SfM steps, dense stereo, segmentation, the estimates' meshing an
 
 Usage: .venv/bin/python benchmarks/paper_budget.py [REPO_ROOT] [--cells-over SECONDS]
 
-Reads `build/notebooks/*.ipynb` and `data/bench-sfm/*/work*/` of REPO_ROOT (default: this
-checkout); computes nothing. Stage times are those each stage wrote when it ran (two workers at
-once in `make paper`, sharing the cores), counted once per stage folder: a stage copied into
-another folder (the automatic- and noisy-mask runs reuse the SfM stage) is counted where it
-was made. Renders record no time of their own; they are the rest of the notebooks' time.
+Reads `build/notebooks/*.ipynb` of the checkout at or above REPO_ROOT (default: the working
+directory) and the full-size experiments' `*/work*/` under its data folder (`VOLEC_DATA_DIR`
+where set, as `make paper` finds it); computes nothing. Stage times are those each stage
+wrote when it ran (two workers at once in `make paper`, sharing the cores), each stage counted
+once: a copy in another folder (the automatic- and noisy-mask runs reuse the SfM stage) is
+not counted again. Renders record no time of their own; they are the rest of the notebooks' time.
 """
 
 from __future__ import annotations
@@ -18,6 +19,8 @@ import json
 from collections import Counter
 from datetime import datetime
 from pathlib import Path
+
+from volec.paths import experiment_dir, repo_root
 
 
 def _seconds(stamp: str) -> float:
@@ -62,8 +65,7 @@ def stage_seconds(root: Path) -> tuple[Counter, Counter]:
         seconds["dense stereo"] += sum(timings.values())
         counts["dense stereo"] += 1
     for segment in root.glob("*/work*/segment.json"):
-        spent = json.loads(segment.read_text()).get("seconds", {})
-        seconds["segmentation"] += spent.get("total_s", 0.0) if isinstance(spent, dict) else 0.0
+        seconds["segmentation"] += json.loads(segment.read_text())["seconds"]["total_s"]
         counts["segmentation"] += 1
     for row in root.glob("*/work*/volume_eval.json"):
         record = json.loads(row.read_text())
@@ -77,13 +79,13 @@ def stage_seconds(root: Path) -> tuple[Counter, Counter]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("root", nargs="?", type=Path,
-                        default=Path(__file__).resolve().parents[1])
+    parser.add_argument("root", nargs="?", type=Path, default=None)
     parser.add_argument("--cells-over", type=float, default=60.0,
                         help="list cells that ran longer than this (seconds)")
     args = parser.parse_args()
-    notebook_times(args.root / "build" / "notebooks", args.cells_over)
-    seconds, counts = stage_seconds(args.root / "data" / "bench-sfm")
+    root = repo_root(args.root)
+    notebook_times(root / "build" / "notebooks", args.cells_over)
+    seconds, counts = stage_seconds(experiment_dir(False, start=root))
     print()
     for stage, value in sorted(seconds.items()):
         print(f"{stage:32s} {value / 60:6.1f} worker-min")
